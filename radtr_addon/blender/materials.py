@@ -1,0 +1,93 @@
+"""Reflectance and emission of a Blender material, as RadTR reads them.
+
+Emission units: Blender's emission Strength S with Color C makes a surface render with
+radiance L = S C (a strength of 1 shows the colour as is). A diffuse emitter of radiance L
+has exitance pi L, so RadTR's emission is E = pi S C in W/m^2 per channel; radiosity B
+converts back to the radiance Cycles shows as B / pi.
+
+Read, in order: the node linked to the active Material Output's Surface, when it is a
+Principled BSDF (Base Color; Emission Color x Emission Strength), a Diffuse BSDF (Color) or
+an Emission shader (Color x Strength, reflectance 0). A linked socket or another shader
+falls back to the material's viewport colour with a warning naming material and node.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Reflectance of faces without a material (what Blender renders them with).
+DEFAULT_REFLECTANCE = (0.8, 0.8, 0.8)
+
+
+@dataclass
+class SurfaceProps:
+    rho: np.ndarray        # (3,)
+    emission: np.ndarray   # (3,) W/m^2
+    warnings: list[str]
+
+
+def _rgb(socket) -> np.ndarray:
+    return np.array(socket.default_value[:3], dtype=np.float64)
+
+
+def _value(node, name):
+    sock = node.inputs.get(name)
+    return sock, (sock is not None and sock.is_linked)
+
+
+def read_material(mat) -> SurfaceProps:
+    """SurfaceProps of material ``mat`` (None: Blender's default grey, no emission)."""
+    if mat is None:
+        return SurfaceProps(np.array(DEFAULT_REFLECTANCE), np.zeros(3), [])
+    warnings: list[str] = []
+    fallback = np.array(mat.diffuse_color[:3], dtype=np.float64)
+    node = _surface_node(mat)
+    if node is None:
+        return SurfaceProps(fallback, np.zeros(3), warnings)
+    rho, emission = fallback, np.zeros(3)
+    if node.type == "BSDF_PRINCIPLED":
+        rho = _socket_rgb(mat, node, "Base Color", fallback, warnings)
+        color = _socket_rgb(mat, node, "Emission Color", np.zeros(3), warnings)
+        strength = _socket_float(mat, node, "Emission Strength", 0.0, warnings)
+        emission = np.pi * strength * color
+    elif node.type == "BSDF_DIFFUSE":
+        rho = _socket_rgb(mat, node, "Color", fallback, warnings)
+    elif node.type == "EMISSION":
+        rho = np.zeros(3)
+        color = _socket_rgb(mat, node, "Color", np.ones(3), warnings)
+        emission = np.pi * _socket_float(mat, node, "Strength", 1.0, warnings) * color
+    else:
+        warnings.append(f"material '{mat.name}': shader node '{node.name}' ({node.type}) is not "
+                        f"read by RadTR; using its viewport colour {tuple(np.round(fallback, 3))}")
+    return SurfaceProps(rho, emission, warnings)
+
+
+def _surface_node(mat):
+    if not mat.use_nodes or mat.node_tree is None:
+        return None
+    outputs = [n for n in mat.node_tree.nodes if n.type == "OUTPUT_MATERIAL"]
+    active = [n for n in outputs if n.is_active_output] or outputs
+    if not active or not active[0].inputs["Surface"].is_linked:
+        return None
+    return active[0].inputs["Surface"].links[0].from_node
+
+
+def _socket_rgb(mat, node, name, default, warnings):
+    sock, linked = _value(node, name)
+    if sock is None:
+        return default
+    if linked:
+        warnings.append(f"material '{mat.name}': '{node.name}' input '{name}' is driven by a node "
+                        f"RadTR does not evaluate; using its unlinked value")
+    return _rgb(sock)
+
+
+def _socket_float(mat, node, name, default, warnings):
+    sock, linked = _value(node, name)
+    if sock is None:
+        return default
+    if linked:
+        warnings.append(f"material '{mat.name}': '{node.name}' input '{name}' is driven by a node "
+                        f"RadTR does not evaluate; using its unlinked value")
+    return float(sock.default_value)

@@ -1,0 +1,138 @@
+"""One solve of a Blender scene, stage by stage: the code the operators and the CLI share.
+
+``SolveJob`` reads the scene, subdivides, sets up form factors and then shoots in steps
+(``advance``), so the Solve operator can run it from a modal timer with a progress bar
+and ESC; ``finish`` writes the result. Until ``finish`` nothing in the file changes, so
+dropping the job is a clean cancel.
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..formfactors.gpu_context import ensure_gpu_context
+from ..formfactors.hemicube import HemicubeRenderer
+from ..formfactors.rows import RowCache
+from ..hierarchy import subdivide
+from ..solvers.shooting import ShootingSolver
+from .extract import extract, source_objects
+from .write import write_results
+
+#: Default patch count used to pick ``max_area`` when it is 0 (auto).
+AUTO_PATCHES = 2000
+
+
+@dataclass
+class Settings:
+    """What a solve does; the Scene PropertyGroup and the CLI flags mirror these fields."""
+
+    max_area: float = 0.0          # scene units^2; 0 picks total area / AUTO_PATCHES
+    levels: int = 1
+    resolution: int = 64           # hemicube pixels across the full face
+    tolerance: float = 1e-3        # unshot / emitted power
+    max_iterations: int = 20_000
+    max_reflectance: float = 0.95
+    exposure: float = 1.0
+    mode: str = "COPY"             # or "REPLACE"
+    cache_mb: int = 2048
+
+
+@dataclass
+class Stats:
+    patches: int = 0
+    seconds: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+
+def auto_max_area(total_area: float, levels: int, patches: int = AUTO_PATCHES) -> float:
+    """``max_area`` giving about ``patches`` leaves after ``levels`` rounds."""
+    return 2 * total_area / patches * 2 ** max(levels - 1, 0)
+
+
+class SolveJob:
+    """Extract, subdivide and prepare form factors at construction; shoot with ``advance``."""
+
+    def __init__(self, bl_scene, depsgraph, view_layer, settings: Settings, log=print):
+        self.bl_scene, self.settings, self.log = bl_scene, settings, log
+        self.stats = Stats()
+        with self._stage("extract"):
+            objects = source_objects(bl_scene, view_layer)
+            self.extraction = extract(depsgraph, objects, settings.max_reflectance)
+        for w in self.extraction.warnings:
+            log(f"RadTR warning: {w}")
+        self.stats.warnings += self.extraction.warnings
+        with self._stage("subdivide"):
+            base = self.extraction.scene
+            max_area = settings.max_area or auto_max_area(base.areas.sum(), settings.levels)
+            self.hierarchy = subdivide(base, max_area, settings.levels)
+        self.leaves = self.hierarchy.leaves
+        self.stats.patches = self.leaves.n
+        self.leaves.validate()
+        with self._stage("gpu_init"):
+            ensure_gpu_context()
+        self.renderer = HemicubeRenderer(self.leaves, settings.resolution)
+        self.rows = RowCache(self.renderer.rows, settings.cache_mb << 20)
+        self.solver = ShootingSolver(self.leaves, self.rows, tol=settings.tolerance,
+                                     max_iterations=settings.max_iterations)
+        self.result = None
+
+    @contextmanager
+    def _stage(self, name):
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.stats.seconds[name] = time.perf_counter() - t0
+
+    @property
+    def fraction(self) -> float:
+        """Progress in [0, 1] on a log scale of the residual (1 at the tolerance)."""
+        s = self.solver
+        if s.done:
+            return 1.0
+        r = max(s.residual, 1e-300)
+        by_res = np.log(r) / np.log(self.settings.tolerance) if r < 1 else 0.0
+        return float(np.clip(max(by_res, s.iterations / s.max_iterations), 0.0, 1.0))
+
+    def advance(self, seconds: float = 0.1) -> bool:
+        """Shoot for about ``seconds``; True when the solve is finished."""
+        end = time.perf_counter() + seconds
+        while time.perf_counter() < end:
+            if self.solver.step(8):
+                return True
+        return self.solver.done
+
+    def run(self, progress=None) -> "SolveJob":
+        """Shoot to the end; ``progress(job)`` after each slice may return False to cancel."""
+        from ..errors import Cancelled
+
+        while not self.advance(0.25):
+            if progress is not None and progress(self) is False:
+                raise Cancelled("solve cancelled; nothing was changed")
+        return self
+
+    def finish(self) -> list:
+        """Write the result into the file; returns the result objects."""
+        self.result = self.solver.result()
+        self.stats.seconds["form_factors"] = self.result.seconds["form_factors"]
+        self.stats.seconds["solve"] = self.result.seconds["solve"]
+        with self._stage("write"):
+            objects = write_results(self.bl_scene, self.extraction, self.leaves, self.result.B,
+                                    self.settings.exposure, self.settings.mode)
+        r = self.result
+        self.log(f"RadTR: {self.leaves.n} patches, {r.iterations} shots, residual "
+                 f"{r.residual_history[-1] if r.residual_history else 0:.2e}, "
+                 f"{'converged' if r.converged else 'stopped at the iteration cap'}; "
+                 f"energy balance error {r.balance_error():.1e}")
+        return objects
+
+
+def solve(context, settings: Settings, log=print, progress=None) -> SolveJob:
+    """Solve the context's scene to completion and write the result (batch use)."""
+    job = SolveJob(context.scene, context.evaluated_depsgraph_get(), context.view_layer, settings, log)
+    job.run(progress)
+    job.finish()
+    return job

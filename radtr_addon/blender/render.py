@@ -1,0 +1,72 @@
+"""Render a picture of a solved scene to PNG, for people to look at.
+
+Cycles draws the result meshes' display material (emission = exposure x B / pi) with no
+bounces, so the picture shows the solved radiosity and nothing Cycles computed itself.
+The scene's render settings are restored afterwards.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+_SETTINGS = [
+    ("render", "engine"), ("render", "filepath"), ("render", "resolution_percentage"),
+    ("render.image_settings", "file_format"), ("view_settings", "view_transform"),
+    ("view_settings", "look"), ("cycles", "samples"), ("cycles", "max_bounces"),
+    ("cycles", "use_denoising"), ("cycles", "device"),
+]
+
+
+def _owner(scene, path):
+    obj = scene
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def render_png(bl_scene, path: str, samples: int = 16):
+    """Render ``bl_scene`` through its camera (one framing the scene if it has none) to ``path``."""
+    import bpy
+
+    saved = [(p, a, getattr(_owner(bl_scene, p), a)) for p, a in _SETTINGS]
+    temp_cam = None if bl_scene.camera else _frame_camera(bl_scene)
+    try:
+        r = bl_scene.render
+        r.engine = "CYCLES"
+        bl_scene.cycles.device = "CPU"
+        bl_scene.cycles.samples = samples
+        bl_scene.cycles.max_bounces = 0
+        bl_scene.cycles.use_denoising = False
+        bl_scene.view_settings.view_transform = "Standard"
+        bl_scene.view_settings.look = "None"
+        r.image_settings.file_format = "PNG"
+        r.resolution_percentage = 100
+        r.filepath = path
+        bpy.ops.render.render(write_still=True, scene=bl_scene.name)
+    finally:
+        for p, a, v in saved:
+            setattr(_owner(bl_scene, p), a, v)
+        if temp_cam is not None:
+            data = temp_cam.data
+            bpy.data.objects.remove(temp_cam)
+            bpy.data.cameras.remove(data)
+            bl_scene.camera = None
+
+
+def _frame_camera(bl_scene):
+    """A temporary camera looking at the visible objects' bounding box from the front."""
+    import bpy
+    from mathutils import Vector
+
+    pts = [o.matrix_world @ Vector(c) for o in bl_scene.objects if o.visible_get()
+           and o.type == "MESH" for c in o.bound_box]
+    arr = np.array([tuple(p) for p in pts]) if pts else np.zeros((1, 3))
+    lo, hi = arr.min(axis=0), arr.max(axis=0)
+    centre, size = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) or 1.0
+    data = bpy.data.cameras.new("RadTR view")
+    data.clip_end = 10 * size
+    cam = bpy.data.objects.new("RadTR view", data)
+    bl_scene.collection.objects.link(cam)
+    cam.location = Vector(centre + np.array([0.0, -1.6 * size, 0.35 * size]))
+    cam.rotation_euler = (Vector(centre) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    bl_scene.camera = cam
+    return cam

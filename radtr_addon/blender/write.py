@@ -1,0 +1,177 @@
+"""Write a solve into Blender: result meshes with colour attributes, display material.
+
+Attributes on every result mesh (B in W/m^2, alpha 1):
+- ``radtr_patch`` (FACE, FLOAT_COLOR): each patch's radiosity as solved;
+- ``radtr_radiosity`` (POINT, FLOAT_COLOR): area-weighted mean of the patches around a vertex;
+- ``radtr_patch_index`` (FACE, INT): the patch's index in the solve.
+
+``mode='COPY'`` puts subdivided copies in the "RadTR" collection and hides the sources;
+``mode='REPLACE'`` gives the sources the subdivided mesh instead (modifiers applied, removed).
+All meshes are built before anything in the scene changes; on an error they are deleted
+again, so a failed write leaves the file as it was.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .extract import HIDDEN_SOURCE, RESULT_COLLECTION, bpy_collection
+
+DISPLAY_MATERIAL = "RadTR Radiosity"
+EMISSION_NODE = "RadTR Emission"
+
+
+def build_mesh(name: str, vertices: np.ndarray, triangles: np.ndarray, B: np.ndarray,
+               patch_ids: np.ndarray):
+    """A new mesh datablock of the triangles given, with RadTR's attributes."""
+    import bpy
+
+    used, local = np.unique(triangles, return_inverse=True)
+    local = local.reshape(-1, 3)
+    verts = vertices[used]
+    mesh = bpy.data.meshes.new(name)
+    mesh.vertices.add(len(verts))
+    mesh.vertices.foreach_set("co", verts.astype(np.float32).ravel())
+    mesh.loops.add(local.size)
+    mesh.loops.foreach_set("vertex_index", local.astype(np.int32).ravel())
+    mesh.polygons.add(len(local))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, local.size, 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    rgba = np.column_stack([B, np.ones(len(B))]).astype(np.float32)
+    mesh.attributes.new("radtr_patch", "FLOAT_COLOR", "FACE").data.foreach_set("color", rgba.ravel())
+    mesh.attributes.new("radtr_patch_index", "INT", "FACE").data.foreach_set(
+        "value", patch_ids.astype(np.int32))
+    point = vertex_average(local, len(verts), B, _areas(verts, local))
+    prgba = np.column_stack([point, np.ones(len(point))]).astype(np.float32)
+    attr = mesh.color_attributes.new("radtr_radiosity", "FLOAT_COLOR", "POINT")
+    attr.data.foreach_set("color", prgba.ravel())
+    mesh.color_attributes.active_color = attr
+    mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
+    return mesh
+
+
+def _areas(verts, tris):
+    a, b, c = (verts[tris[:, k]] for k in range(3))
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+def vertex_average(tris: np.ndarray, n_vertices: int, values: np.ndarray, areas: np.ndarray):
+    """Per-vertex area-weighted mean of per-triangle ``values`` (t, c)."""
+    w = np.repeat(areas, 3)
+    idx = tris.ravel()
+    total = np.bincount(idx, weights=w, minlength=n_vertices)
+    out = np.stack([np.bincount(idx, weights=w * np.repeat(values[:, c], 3), minlength=n_vertices)
+                    for c in range(values.shape[1])], axis=1)
+    return out / np.maximum(total, 1e-300)[:, None]
+
+
+def display_material(exposure: float = 1.0):
+    """The material that shows ``radtr_radiosity`` as radiance B / pi times ``exposure``."""
+    import bpy
+
+    mat = bpy.data.materials.get(DISPLAY_MATERIAL)
+    if mat is None:
+        mat = bpy.data.materials.new(DISPLAY_MATERIAL)
+        mat.use_nodes = True
+        nodes, links = mat.node_tree.nodes, mat.node_tree.links
+        nodes.clear()
+        attr = nodes.new("ShaderNodeAttribute")
+        attr.attribute_type = "GEOMETRY"
+        attr.attribute_name = "radtr_radiosity"
+        emit = nodes.new("ShaderNodeEmission")
+        emit.name = EMISSION_NODE
+        out = nodes.new("ShaderNodeOutputMaterial")
+        attr.location, emit.location, out.location = (-400, 0), (-150, 0), (100, 0)
+        links.new(attr.outputs["Color"], emit.inputs["Color"])
+        links.new(emit.outputs["Emission"], out.inputs["Surface"])
+    set_exposure(exposure)
+    return mat
+
+
+def set_exposure(exposure: float):
+    """Scale every RadTR display (seed F12): displayed radiance = exposure x B / pi."""
+    import bpy
+
+    mat = bpy.data.materials.get(DISPLAY_MATERIAL)
+    if mat and mat.node_tree and EMISSION_NODE in mat.node_tree.nodes:
+        mat.node_tree.nodes[EMISSION_NODE].inputs["Strength"].default_value = exposure / math.pi
+
+
+def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY") -> list:
+    """Write radiosity ``B`` of ``leaves`` (a PatchScene) onto the extraction's objects."""
+    import bpy
+
+    meshes = []
+    try:
+        for k, obj in enumerate(extraction.objects):
+            sel = np.flatnonzero(leaves.object_index == k)
+            if len(sel) == 0:
+                continue
+            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, leaves.triangles[sel], B[sel], sel)
+            meshes.append((obj, mesh))
+        material = display_material(exposure) if mode == "COPY" else None
+    except Exception:
+        for _, mesh in meshes:
+            bpy.data.meshes.remove(mesh)
+        raise
+    clear_results(bl_scene, unhide=False)
+    return _link_copies(bl_scene, meshes, material) if mode == "COPY" else _replace(meshes)
+
+
+def _link_copies(bl_scene, meshes, material):
+    import bpy
+
+    coll = bpy_collection(bl_scene)
+    if coll is None:
+        coll = bpy.data.collections.get(RESULT_COLLECTION) or bpy.data.collections.new(RESULT_COLLECTION)
+        bl_scene.collection.children.link(coll)
+    out = []
+    for src, mesh in meshes:
+        mesh.materials.append(material)
+        obj = bpy.data.objects.new(mesh.name, mesh)
+        coll.objects.link(obj)
+        src[HIDDEN_SOURCE] = True
+        src.hide_set(True)
+        src.hide_render = True
+        out.append(obj)
+    return out
+
+
+def _replace(meshes):
+    out = []
+    for src, mesh in meshes:
+        inv = np.array(src.matrix_world.inverted())
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        co = co.reshape(-1, 3) @ inv[:3, :3].T + inv[:3, 3]
+        mesh.vertices.foreach_set("co", co.astype(np.float32).ravel())
+        for mat in src.data.materials:
+            mesh.materials.append(mat)
+        src.modifiers.clear()
+        src.data = mesh
+        out.append(src)
+    return out
+
+
+def clear_results(bl_scene, unhide: bool = True) -> int:
+    """Delete RadTR's result objects; with ``unhide`` show the sources again. Returns count."""
+    import bpy
+
+    coll = bpy_collection(bl_scene)
+    removed = 0
+    if coll is not None:
+        for obj in list(coll.objects):
+            mesh = obj.data
+            bpy.data.objects.remove(obj)
+            if mesh.users == 0:
+                bpy.data.meshes.remove(mesh)
+            removed += 1
+        bpy.data.collections.remove(coll)
+    if unhide:
+        for obj in bl_scene.objects:
+            if obj.get(HIDDEN_SOURCE):
+                del obj[HIDDEN_SOURCE]
+                obj.hide_set(False)
+                obj.hide_render = False
+    return removed

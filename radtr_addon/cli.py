@@ -1,0 +1,120 @@
+"""Command line: ``python -m radtr_addon solve SCENE ...`` and ``... bench NAME``.
+
+SCENE is a .blend file, an .obj file (read by Blender's own importer) or the name of a
+bundled scene in ``scenes/`` (e.g. ``cornell_box``). Runs on the PyPI ``bpy`` module; the
+same solve runs inside Blender as ``bpy.ops.radtr.solve()``.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+from pathlib import Path
+
+from .errors import RadTRError
+
+SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+
+
+def bundled_scenes() -> list[str]:
+    return sorted(p.stem for p in SCENES_DIR.glob("*.py") if not p.stem.startswith("_"))
+
+
+def load_bundled(name: str):
+    """The module of bundled scene ``name`` (loaded by path: it is not part of the engine)."""
+    path = SCENES_DIR / f"{name}.py"
+    if not path.is_file():
+        raise RadTRError(f"no bundled scene '{name}' (have: {', '.join(bundled_scenes())})")
+    spec = importlib.util.spec_from_file_location(f"radtr_scene_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def open_scene(source: str) -> list[str]:
+    """Make ``source`` the current Blender file; returns warnings from loading it."""
+    import bpy
+
+    path = Path(source)
+    if path.suffix.lower() == ".blend":
+        if not path.is_file():
+            raise RadTRError(f"{path}: no such file")
+        bpy.ops.wm.open_mainfile(filepath=str(path))
+        return []
+    bpy.ops.wm.read_homefile(use_empty=True)
+    if path.suffix.lower() == ".obj":
+        from .blender.objfile import load_obj
+
+        return load_obj(path)
+    load_bundled(source).build(bpy)
+    return []
+
+
+def _settings_args(p: argparse.ArgumentParser):
+    from .blender.pipeline import Settings
+
+    d = Settings()
+    p.add_argument("--max-area", type=float, default=d.max_area,
+                   help="largest patch area in scene units^2 (0: about 2,000 patches)")
+    p.add_argument("--levels", type=int, default=d.levels, help="subdivision rounds")
+    p.add_argument("--resolution", type=int, default=d.resolution, help="hemicube pixels per face")
+    p.add_argument("--tolerance", type=float, default=d.tolerance, help="unshot/emitted power to stop at")
+    p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots")
+    p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
+    p.add_argument("--exposure", type=float, default=d.exposure)
+
+
+def settings_from(args):
+    from .blender.pipeline import Settings
+
+    return Settings(max_area=args.max_area, levels=args.levels, resolution=args.resolution,
+                    tolerance=args.tolerance, max_iterations=args.iterations,
+                    max_reflectance=args.max_reflectance, exposure=args.exposure)
+
+
+def cmd_solve(args) -> int:
+    import bpy
+
+    from .blender.pipeline import solve
+    from .blender.render import render_png
+
+    for w in open_scene(args.scene):
+        print(f"RadTR warning: {w}")
+    job = solve(bpy.context, settings_from(args))
+    times = ", ".join(f"{k} {v:.2f} s" for k, v in job.stats.seconds.items())
+    print(f"RadTR: stages: {times}")
+    if args.out:
+        bpy.ops.wm.save_as_mainfile(filepath=str(Path(args.out).resolve()))
+        print(f"RadTR: wrote {args.out}")
+    if args.render:
+        render_png(bpy.context.scene, str(Path(args.render).resolve()))
+        print(f"RadTR: rendered {args.render}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import run_benchmark
+
+    return run_benchmark(args.name, quick=args.quick, json_path=args.json)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m radtr_addon", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("solve", help="solve a scene and write the result")
+    p.add_argument("scene", help=".blend, .obj or bundled scene name")
+    p.add_argument("--out", help="write the solved scene to this .blend")
+    p.add_argument("--render", help="render the solved scene to this PNG")
+    _settings_args(p)
+    p.set_defaults(func=cmd_solve)
+    b = sub.add_parser("bench", help="run a benchmark and print its table")
+    b.add_argument("name", help="benchmark name, e.g. skeleton")
+    b.add_argument("--quick", action="store_true", help="smaller sizes, for a quick look")
+    b.add_argument("--json", help="also write the results to this JSON file")
+    b.set_defaults(func=cmd_bench)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except RadTRError as exc:
+        print(f"RadTR error: {exc}", file=sys.stderr)
+        return 2

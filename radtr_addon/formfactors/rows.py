@@ -1,0 +1,56 @@
+"""Sparse form-factor rows and a row cache with a memory budget."""
+from __future__ import annotations
+
+import time
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from ..errors import SceneError
+
+
+class Row(NamedTuple):
+    """One form-factor row of patch i: F[i, indices] = values."""
+
+    indices: np.ndarray  # (m,) int64 patch ids, sorted
+    values: np.ndarray   # (m,) float64
+    escaped: float       # fraction leaving the scene
+    blocked: float       # fraction hitting back faces (absorbed there)
+
+
+class RowCache:
+    """Rows computed by ``compute(ids) -> list[Row]`` in batches, kept while they fit.
+
+    ``budget_bytes`` caps what is kept; rows beyond it are recomputed when asked again.
+    """
+
+    def __init__(self, compute: Callable[[np.ndarray], list[Row]], budget_bytes: int = 2 << 30):
+        self._compute = compute
+        self.budget_bytes = budget_bytes
+        self.bytes = 0
+        self.rows: dict[int, Row] = {}
+        self.computed = 0
+        self.seconds = 0.0
+
+    def get(self, i: int, prefetch: np.ndarray | None = None) -> Row:
+        """Row i; on a miss also compute the rows in ``prefetch`` not held yet (one batch)."""
+        row = self.rows.get(i)
+        if row is not None:
+            return row
+        ids = [i]
+        if prefetch is not None:
+            ids += [int(j) for j in prefetch if int(j) != i and int(j) not in self.rows]
+        t0 = time.perf_counter()
+        computed = self._compute(np.asarray(ids, dtype=np.int64))
+        self.seconds += time.perf_counter() - t0
+        for j, r in zip(ids, computed):
+            self.computed += 1
+            size = r.indices.nbytes + r.values.nbytes + 64
+            if self.bytes + size <= self.budget_bytes:
+                self.rows[j] = r
+                self.bytes += size
+            if j == i:
+                row = r
+        if row is None:
+            raise SceneError(f"form-factor method returned no row for patch {i}")
+        return row
