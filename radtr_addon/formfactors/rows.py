@@ -32,14 +32,14 @@ class RowCache:
         self.computed = 0
         self.seconds = 0.0
 
-    def get(self, i: int, prefetch: np.ndarray | None = None) -> Row:
-        """Row i; on a miss also compute the rows in ``prefetch`` not held yet (one batch)."""
+    def get(self, i: int, prefetch: Callable[[], np.ndarray] | None = None) -> Row:
+        """Row i; on a miss also compute the rows ``prefetch()`` names, not held yet (one batch)."""
         row = self.rows.get(i)
         if row is not None:
             return row
         ids = [i]
         if prefetch is not None:
-            ids += [int(j) for j in prefetch if int(j) != i and int(j) not in self.rows]
+            ids += [int(j) for j in prefetch() if int(j) != i and int(j) not in self.rows]
         t0 = time.perf_counter()
         computed = self._compute(np.asarray(ids, dtype=np.int64))
         self.seconds += time.perf_counter() - t0

@@ -68,8 +68,7 @@ class ShootingSolver:
     def _shoot_one(self):
         up, area, rho = self.unshot_power, self.area, self.scene.rho
         i = int(np.argmax(up))
-        ahead = np.argpartition(-up, min(PREFETCH, len(up) - 1))[:PREFETCH]
-        row = self.rows.get(i, prefetch=ahead)
+        row = self.rows.get(i, prefetch=lambda: np.argpartition(-up, min(PREFETCH, len(up) - 1))[:PREFETCH])
         power = self.dB[i] * area[i, 0]                   # W per channel leaving patch i
         j = row.indices
         irradiance = np.outer(row.values, power) / area[j]

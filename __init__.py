@@ -1,0 +1,18 @@
+"""RadTR: radiosity global illumination for Blender.
+
+The engine lives in ``radtr_addon`` (numpy, no window needed); this package registers the
+Scene settings, the operators (Subdivide, Solve, Clear) and the View3D > Sidebar > RadTR panel.
+"""
+from . import operators, panels, properties
+
+_modules = (properties, operators, panels)
+
+
+def register():
+    for module in _modules:
+        module.register()
+
+
+def unregister():
+    for module in reversed(_modules):
+        module.unregister()

@@ -1,0 +1,34 @@
+"""Benchmarks: ``python -m radtr_addon bench NAME [--quick] [--json FILE]`` prints a table."""
+from __future__ import annotations
+
+import json
+
+from ..errors import RadTRError
+
+
+def print_table(rows: list[dict]):
+    """Print ``rows`` (dicts with the same keys) as an aligned text table."""
+    keys = list(rows[0])
+    cells = [[_fmt(r[k]) for k in keys] for r in rows]
+    widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
+    print("  ".join(k.rjust(w) for k, w in zip(keys, widths)))
+    for c in cells:
+        print("  ".join(v.rjust(w) for v, w in zip(c, widths)))
+
+
+def _fmt(v) -> str:
+    return f"{v:.3f}" if isinstance(v, float) else str(v)
+
+
+def run_benchmark(name: str, quick: bool = False, json_path: str | None = None) -> int:
+    from . import skeleton
+
+    benches = {"skeleton": skeleton.run}
+    if name not in benches:
+        raise RadTRError(f"no benchmark '{name}' (have: {', '.join(benches)})")
+    rows = benches[name](quick=quick)
+    print_table(rows)
+    if json_path:
+        with open(json_path, "w") as fh:
+            json.dump(rows, fh, indent=2)
+    return 0
