@@ -105,7 +105,8 @@ def build(bpy):
 
 def _material(bpy, name, rho, radiance):
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*rho, 1.0)
     bsdf.inputs["Roughness"].default_value = 1.0

@@ -64,7 +64,9 @@ def read_material(mat) -> SurfaceProps:
 
 
 def _surface_node(mat):
-    if not mat.use_nodes or mat.node_tree is None:
+    import bpy
+
+    if mat.node_tree is None or (bpy.app.version < (5, 0, 0) and not mat.use_nodes):
         return None
     outputs = [n for n in mat.node_tree.nodes if n.type == "OUTPUT_MATERIAL"]
     active = [n for n in outputs if n.is_active_output] or outputs

@@ -73,7 +73,8 @@ def display_material(exposure: float = 1.0):
     mat = bpy.data.materials.get(DISPLAY_MATERIAL)
     if mat is None:
         mat = bpy.data.materials.new(DISPLAY_MATERIAL)
-        mat.use_nodes = True
+        if bpy.app.version < (5, 0, 0):
+            mat.use_nodes = True
         nodes, links = mat.node_tree.nodes, mat.node_tree.links
         nodes.clear()
         attr = nodes.new("ShaderNodeAttribute")
@@ -116,6 +117,8 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY") ->
             bpy.data.meshes.remove(mesh)
         raise
     clear_results(bl_scene, unhide=False)
+    for src, mesh in meshes:                    # names are free now that old results are gone
+        mesh.name = f"{src.name}_radtr"
     return _link_copies(bl_scene, meshes, material) if mode == "COPY" else _replace(meshes)
 
 

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Set up .venv (Python 3.11, PyPI bpy and the rest) if needed, then run a job:
+#   ./dev.sh solve   solve the bundled Cornell box, write out/cornell_box.png and .blend
+#   ./dev.sh test    run the test suite (headless)
+set -euo pipefail
+cd "$(dirname "$0")"
+PY=${PYTHON:-python3.11}
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import bpy, scipy, embreex, pyopencl, pytest" 2>/dev/null; then
+  "$PY" -m venv .venv
+  .venv/bin/python -m pip install -q --upgrade pip
+  .venv/bin/python -m pip install -q -r requirements.txt
+fi
+case "${1:-}" in
+  solve)
+    mkdir -p out
+    .venv/bin/python -m radtr_addon solve cornell_box --out out/cornell_box.blend --render out/cornell_box.png
+    ;;
+  test)
+    shift
+    .venv/bin/python -m pytest "$@"
+    ;;
+  *)
+    echo "usage: ./dev.sh solve | test [pytest args]" >&2
+    exit 2
+    ;;
+esac

@@ -1,0 +1,115 @@
+"""The add-on in Blender: operators, attributes written, transactional failure and cancel."""
+import math
+
+import numpy as np
+import pytest
+
+from radtr_addon.blender.extract import HIDDEN_SOURCE, RESULT_COLLECTION
+from radtr_addon.blender.pipeline import Settings, SolveJob
+from radtr_addon.errors import SceneError
+
+
+def small(bpy, **kw):
+    s = bpy.context.scene.radtr
+    s.max_area, s.levels, s.tolerance, s.resolution = 0.004, 1, 1e-2, 32
+    for k, v in kw.items():
+        setattr(s, k, v)
+
+
+def snapshot(bpy):
+    return (sorted(o.name for o in bpy.data.objects), sorted(m.name for m in bpy.data.meshes),
+            sorted((o.name, o.hide_get(), o.hide_render) for o in bpy.context.scene.objects))
+
+
+def test_operators_and_panel_registered(addon, blend):
+    for op in ("subdivide", "solve", "clear"):
+        assert hasattr(blend.ops.radtr, op)
+        assert getattr(blend.ops.radtr, op).get_rna_type().name
+    assert hasattr(blend.types, "RADTR_PT_main")
+    assert blend.context.scene.radtr.levels >= 0
+
+
+def test_solve_writes_attributes_and_clear_restores(cornell):
+    bpy = cornell
+    small(bpy)
+    sources = [o.name for o in bpy.context.scene.objects if o.type == "MESH"]
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    results = list(bpy.data.collections[RESULT_COLLECTION].objects)
+    assert sorted(o.name for o in results) == sorted(f"{n}_radtr" for n in sources)
+    for name in sources:
+        src = bpy.data.objects[name]
+        assert src.hide_get() and src.hide_render and src.get(HIDDEN_SOURCE)
+    light = bpy.data.objects["light_radtr"].data
+    patch = light.attributes["radtr_patch"]
+    assert (patch.domain, patch.data_type) == ("FACE", "FLOAT_COLOR")
+    point = light.color_attributes["radtr_radiosity"]
+    assert (point.domain, point.data_type) == ("POINT", "FLOAT_COLOR")
+    b = np.empty(len(light.polygons) * 4, dtype=np.float32)
+    patch.data.foreach_get("color", b)
+    # the light's own exitance pi * 17 W/m^2 plus what it reflects
+    assert b.reshape(-1, 4)[:, 0].min() >= math.pi * 17 * (1 - 1e-6)
+    floor = bpy.data.objects["floor_radtr"].data
+    p = np.empty(len(floor.vertices) * 4, dtype=np.float32)
+    floor.color_attributes["radtr_radiosity"].data.foreach_get("color", p)
+    f = np.empty(len(floor.polygons) * 4, dtype=np.float32)
+    floor.attributes["radtr_patch"].data.foreach_get("color", f)
+    assert f.reshape(-1, 4)[:, :3].min() <= p.reshape(-1, 4)[:, :3].min()
+    assert p.reshape(-1, 4)[:, :3].max() <= f.reshape(-1, 4)[:, :3].max()
+    assert bpy.ops.radtr.clear() == {"FINISHED"}
+    assert RESULT_COLLECTION not in bpy.data.collections
+    assert all(not bpy.data.objects[n].hide_get() for n in sources)
+
+
+def test_solving_twice_gives_the_same_patches(cornell):
+    bpy = cornell
+    small(bpy)
+    bpy.ops.radtr.solve()
+    first = {o.name: len(o.data.polygons) for o in bpy.data.collections[RESULT_COLLECTION].objects}
+    bpy.ops.radtr.solve()
+    second = {o.name: len(o.data.polygons) for o in bpy.data.collections[RESULT_COLLECTION].objects}
+    assert first == second
+
+
+def test_exposure_scales_the_display_material(cornell):
+    bpy = cornell
+    small(bpy)
+    bpy.ops.radtr.solve()
+    bpy.context.scene.radtr.exposure = 4.0
+    node = bpy.data.materials["RadTR Radiosity"].node_tree.nodes["RadTR Emission"]
+    assert node.inputs["Strength"].default_value == pytest.approx(4.0 / math.pi)
+
+
+def test_failed_solve_changes_nothing(cornell):
+    bpy = cornell
+    small(bpy)
+    bpy.data.materials["light"].node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 0
+    before = snapshot(bpy)
+    with pytest.raises(RuntimeError, match="nothing emits"):
+        bpy.ops.radtr.solve()
+    assert snapshot(bpy) == before
+
+
+def test_cancelled_job_changes_nothing(cornell):
+    bpy = cornell
+    before = snapshot(bpy)
+    ctx = bpy.context
+    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer,
+                   Settings(max_area=0.004, resolution=32), log=lambda *_: None)
+    job.advance(0.2)
+    assert 0 < job.solver.iterations and not job.solver.done
+    del job
+    assert snapshot(bpy) == before
+
+
+def test_empty_scene_is_refused(blend):
+    ctx = blend.context
+    with pytest.raises(SceneError, match="no visible mesh"):
+        SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, Settings())
+
+
+def test_subdivide_shows_patches(cornell):
+    bpy = cornell
+    small(bpy)
+    assert bpy.ops.radtr.subdivide() == {"FINISHED"}
+    n = sum(len(o.data.polygons) for o in bpy.data.collections[RESULT_COLLECTION].objects)
+    assert n > 200
