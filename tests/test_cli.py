@@ -1,0 +1,42 @@
+"""Batch use: ``python -m radtr_addon solve`` writes a .blend and a PNG a person can look at;
+``bench skeleton --quick`` prints its table and JSON."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from conftest import ROOT
+
+
+def run(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "radtr_addon", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=600)
+
+
+def test_solve_bundled_scene_writes_blend_and_png(tmp_path, blend):
+    out = run("solve", "cornell_box", "--max-area", "0.006", "--resolution", "32", "--tolerance", "0.01",
+              "--out", str(tmp_path / "r.blend"), "--render", str(tmp_path / "r.png"))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "energy balance error" in out.stdout
+    blend.ops.wm.open_mainfile(filepath=str(tmp_path / "r.blend"))
+    assert len(blend.data.collections["RadTR"].objects) == 8
+    img = blend.data.images.load(str(tmp_path / "r.png"))
+    px = np.array(img.pixels[:]).reshape(img.size[1], img.size[0], 4)[::-1]   # top row first
+    top, left, right = px[55:90, 200:312, :3], px[200:300, 20:60, :3], px[200:300, -60:-20, :3]
+    assert top.max() > 0.99                                   # the light, seen in the ceiling
+    assert left[..., 0].mean() > 1.3 * left[..., 1].mean()      # red wall on the left
+    assert right[..., 1].mean() > 1.3 * right[..., 0].mean()    # green wall on the right
+
+
+def test_unknown_scene_is_a_clear_error():
+    out = run("solve", "no_such_scene")
+    assert out.returncode == 2 and "no bundled scene 'no_such_scene'" in out.stderr
+
+
+def test_bench_skeleton_quick(tmp_path):
+    out = run("bench", "skeleton", "--quick", "--json", str(tmp_path / "b.json"))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "form_factors" in out.stdout
+    rows = json.loads((tmp_path / "b.json").read_text())
+    assert rows[0]["patches"] > 800 and rows[0]["shots"] > 0
