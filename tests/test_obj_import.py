@@ -4,8 +4,8 @@ import subprocess
 import sys
 
 import pytest
-
 from conftest import ROOT, SHARED_OBJ
+
 from radtr_addon.blender.objfile import load_obj, scan_obj
 from radtr_addon.blender.pipeline import Settings, solve
 from radtr_addon.errors import InputFileError
@@ -65,8 +65,9 @@ def test_scan_reports_lines(tmp_path):
 
 @needs_data
 def test_cli_reports_bad_file_without_traceback():
-    out = subprocess.run([sys.executable, "-m", "radtr_addon", "solve", str(SHARED_OBJ / "issue-140-zero-face-idx.obj")],
-                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    bad = SHARED_OBJ / "issue-140-zero-face-idx.obj"
+    out = subprocess.run([sys.executable, "-m", "radtr_addon", "solve", str(bad)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
     assert out.returncode == 2
     assert "RadTR error:" in out.stderr and "issue-140-zero-face-idx.obj" in out.stderr
     assert "Traceback" not in out.stderr
