@@ -4,7 +4,7 @@
 #   ./dev.sh test    run the test suite (headless)
 set -euo pipefail
 cd "$(dirname "$0")"
-PY=${PYTHON:-python3.11}
+PY=${PYTHON:-$(command -v python3.11 || command -v python3)}
 if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import bpy, scipy, embreex, pyopencl, pytest" 2>/dev/null; then
   "$PY" -m venv .venv
   .venv/bin/python -m pip install -q --upgrade pip
