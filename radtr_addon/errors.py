@@ -13,10 +13,6 @@ class InputFileError(RadTRError):
     """A file given to RadTR cannot be read as what it claims to be."""
 
 
-class MissingDependency(RadTRError):
-    """An optional package a feature needs is not installed."""
-
-
 class Cancelled(RadTRError):
     """The user cancelled; nothing was changed."""
 
