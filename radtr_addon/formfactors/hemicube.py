@@ -85,6 +85,7 @@ class HemicubeRenderer:
         self.offset = 1e-4 * self.diag
         self.far = 2.5 * self.diag
         self._shader = self._batch = None
+        self._layouts: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         self.renders = 0
         tiles_by_pixels = max(1, BATCH_PIXELS // (3 * self.res * self.res))
         tiles_by_hist = max(1, HISTOGRAM_CELLS // (scene.n + 2))
@@ -170,14 +171,22 @@ class HemicubeRenderer:
         image = np.asarray(buffer).reshape(height, width, 4)[:, :, 0]
         return self._histogram(image, len(ids), cols)
 
+    def _layout(self, rows_: int, cols: int):
+        """Tile index and delta form factor of every framebuffer pixel (cached per grid)."""
+        key = (rows_, cols)
+        if key not in self._layouts:
+            r = self.res
+            tile = np.arange(rows_)[:, None] * cols + np.arange(cols)[None, :]
+            self._layouts[key] = (np.kron(tile, np.ones((r, 3 * r), dtype=np.int64)),
+                                  np.tile(self.weights, (rows_, cols)))
+        return self._layouts[key]
+
     def _histogram(self, image: np.ndarray, count: int, cols: int) -> list[Row]:
         n, r = self.scene.n, self.res
         rows_ = image.shape[0] // r
         ids = np.rint(image).astype(np.int64)
         ids = np.where(ids < 0, n + 1, ids)
-        tile = (np.arange(rows_)[:, None] * cols + np.arange(cols)[None, :])
-        tile_px = np.kron(tile, np.ones((r, 3 * r), dtype=np.int64))
-        weights = np.tile(self.weights, (rows_, cols))
+        tile_px, weights = self._layout(rows_, cols)
         used = tile_px < count
         keys = tile_px[used] * (n + 2) + ids[used]
         hist = np.bincount(keys, weights[used], minlength=count * (n + 2)).reshape(count, n + 2)
