@@ -1,6 +1,6 @@
 """RadTR settings stored on the Scene as ``scene.radtr``."""
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 from .radtr_addon.blender.pipeline import Settings
 
@@ -20,9 +20,28 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     levels: IntProperty(
         name="Levels", default=_D.levels, min=0, max=12,
         description="Subdivision rounds; each halves the max area (the patch hierarchy)")
+    method: EnumProperty(
+        name="Form Factors", default=_D.method,
+        items=[("hemicube", "Hemicube", "Five GPU views per patch with exact pixel weights"),
+               ("paraboloid", "Paraboloid", "One GPU hemisphere view per patch, edges split to follow the curve"),
+               ("embree", "Rays", "Embree rays on the CPU: no GPU needed")])
     resolution: IntProperty(
-        name="Hemicube Resolution", default=_D.resolution, min=16, max=1024, step=2,
-        description="Pixels across a hemicube face: more is more exact and slower")
+        name="Resolution", default=_D.resolution, min=16, max=1024, step=2,
+        description="Pixels across a hemicube face or the paraboloid disk: more is more exact and slower")
+    rotate: BoolProperty(
+        name="Random Rotation", default=_D.rotate,
+        description="Turn each hemicube about its normal at random to break aliasing")
+    split: EnumProperty(
+        name="Split", default=_D.split,
+        items=[("none", "None", "Plain projection: straight edges, darker junctions"),
+               ("uniform", "Uniform", "Every triangle drawn as an N x N grid"),
+               ("adaptive", "Adaptive", "Each triangle split by how wide it looks from the patch")])
+    split_level: IntProperty(
+        name="Split N", default=_D.split_level, min=1, max=64,
+        description="Uniform split: each triangle drawn as N x N sub-triangles")
+    rays: IntProperty(
+        name="Rays", default=_D.rays, min=1, soft_max=65536,
+        description="Rays per patch (rounded to a square number): error falls as 1 / sqrt(rays)")
     tolerance: FloatProperty(
         name="Tolerance", default=_D.tolerance, min=1e-9, max=0.5, precision=6,
         description="Stop when the unshot power falls below this fraction of the emitted power")
@@ -42,7 +61,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
 
     def to_settings(self) -> Settings:
         return Settings(max_area=self.max_area, levels=self.levels,
-                        resolution=self.resolution - self.resolution % 2,
+                        method=self.method, resolution=self.resolution - self.resolution % 2,
+                        rotate=self.rotate, split=self.split, split_level=self.split_level, rays=self.rays,
                         tolerance=self.tolerance, max_iterations=self.max_iterations,
                         max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode)
 

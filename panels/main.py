@@ -20,7 +20,17 @@ class RADTR_PT_main(bpy.types.Panel):
         col.operator("radtr.subdivide", icon="MOD_SUBSURF")
         col.separator()
         col.label(text="Solve")
-        col.prop(s, "resolution")
+        col.prop(s, "method")
+        if s.method == "embree":
+            col.prop(s, "rays")
+        else:
+            col.prop(s, "resolution")
+        if s.method == "hemicube":
+            col.prop(s, "rotate")
+        elif s.method == "paraboloid":
+            col.prop(s, "split")
+            if s.split == "uniform":
+                col.prop(s, "split_level")
         col.prop(s, "tolerance")
         col.prop(s, "max_iterations")
         col.prop(s, "max_reflectance")

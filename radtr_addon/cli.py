@@ -57,7 +57,13 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--max-area", type=float, default=d.max_area,
                    help="largest patch area in scene units^2 (0: about 2,000 patches)")
     p.add_argument("--levels", type=int, default=d.levels, help="subdivision rounds")
-    p.add_argument("--resolution", type=int, default=d.resolution, help="hemicube pixels per face")
+    p.add_argument("--method", default=d.method, choices=("hemicube", "paraboloid", "embree"),
+                   help="form-factor method")
+    p.add_argument("--resolution", type=int, default=d.resolution, help="hemicube face / paraboloid disk pixels")
+    p.add_argument("--rotate", action="store_true", help="hemicube: random turn about each normal")
+    p.add_argument("--split", default=d.split, choices=("none", "uniform", "adaptive"), help="paraboloid split")
+    p.add_argument("--split-level", type=int, default=d.split_level, help="paraboloid uniform split N")
+    p.add_argument("--rays", type=int, default=d.rays, help="embree rays per patch")
     p.add_argument("--tolerance", type=float, default=d.tolerance, help="unshot/emitted power to stop at")
     p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots")
     p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
@@ -67,7 +73,8 @@ def _settings_args(p: argparse.ArgumentParser):
 def settings_from(args):
     from .blender.pipeline import Settings
 
-    return Settings(max_area=args.max_area, levels=args.levels, resolution=args.resolution,
+    return Settings(max_area=args.max_area, levels=args.levels, method=args.method, resolution=args.resolution,
+                    rotate=args.rotate, split=args.split, split_level=args.split_level, rays=args.rays,
                     tolerance=args.tolerance, max_iterations=args.iterations,
                     max_reflectance=args.max_reflectance, exposure=args.exposure)
 

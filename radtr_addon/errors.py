@@ -19,3 +19,7 @@ class Cancelled(RadTRError):
 
 class GPUUnavailable(RadTRError):
     """No GPU drawing context could be had for a GPU form-factor method."""
+
+
+class SettingsError(RadTRError, ValueError):
+    """A setting out of range or unknown (names the setting and the value)."""

@@ -1,7 +1,8 @@
 """``bench skeleton``: seconds per stage of one Cornell box solve at 3,584 patches.
 
-Stages: extract (Blender meshes to PatchScene), subdivide, gpu_init, form_factors (hemicube
-rows, GPU), solve (shooting arithmetic), write (colour attributes). ``--quick``: 896 patches.
+Stages: extract (Blender meshes to PatchScene), subdivide, form_factor_init (GPU
+context), form_factors (hemicube rows), solve (shooting arithmetic), write (colour
+attributes). ``--quick``: 896 patches.
 """
 from __future__ import annotations
 
@@ -43,7 +44,7 @@ def run(quick: bool = False) -> list[dict]:
         s = job.stats.seconds
         rows.append({
             "patches": job.leaves.n, "shots": job.result.iterations,
-            "rows": job.rows.computed, **{k: round(v, 3) for k, v in s.items()},
+            "rows": job.rows.cache.computed, **{k: round(v, 3) for k, v in s.items()},
             "total": round(sum(s.values()), 3),
         })
     return rows

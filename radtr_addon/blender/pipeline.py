@@ -13,9 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..formfactors.gpu_context import ensure_gpu_context
-from ..formfactors.hemicube import HemicubeRenderer
-from ..formfactors.rows import RowCache
+from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
 from ..solvers.shooting import ShootingSolver
 from .extract import extract, source_objects
@@ -31,13 +29,22 @@ class Settings:
 
     max_area: float = 0.0          # scene units^2; 0 picks total area / AUTO_PATCHES
     levels: int = 1
-    resolution: int = 64           # hemicube pixels across the full face
+    method: str = "hemicube"       # form factors: hemicube | paraboloid | embree
+    resolution: int = 64           # hemicube pixels across the full face / paraboloid disk
+    rotate: bool = False           # hemicube: random turn about the normal per patch
+    split: str = "adaptive"        # paraboloid: none | uniform | adaptive
+    split_level: int = 4           # paraboloid uniform split N
+    rays: int = 1024               # embree rays per row
     tolerance: float = 1e-3        # unshot / emitted power
     max_iterations: int = 20_000
     max_reflectance: float = 0.95
     exposure: float = 1.0
     mode: str = "COPY"             # or "REPLACE"
     cache_mb: int = 2048
+
+    def form_factors(self) -> FormFactorSettings:
+        return FormFactorSettings(method=self.method, resolution=self.resolution, rotate=self.rotate,
+                                  split=self.split, split_level=self.split_level, rays=self.rays)
 
 
 @dataclass
@@ -71,10 +78,11 @@ class SolveJob:
         self.leaves = self.hierarchy.leaves
         self.stats.patches = self.leaves.n
         self.leaves.validate()
-        with self._stage("gpu_init"):
-            ensure_gpu_context()
-        self.renderer = HemicubeRenderer(self.leaves, settings.resolution)
-        self.rows = RowCache(self.renderer.rows, settings.cache_mb << 20)
+        with self._stage("form_factor_init"):
+            self.rows = FormFactors(self.leaves, settings.form_factors(), settings.cache_mb << 20)
+        for w in self.rows.warnings:
+            log(f"RadTR warning: {w}")
+        self.stats.warnings += self.rows.warnings
         self.solver = ShootingSolver(self.leaves, self.rows, tol=settings.tolerance,
                                      max_iterations=settings.max_iterations)
         self.result = None

@@ -4,6 +4,7 @@ A method returns sparse rows (``Row``): the patches hit, their form factors, and
 fractions that escape the scene (``escaped``) or hit the back side of a patch (``blocked``),
 so that ``values.sum() + escaped + blocked`` is 1 up to the method's discretisation error.
 """
+from .methods import METHODS, FormFactors, FormFactorSettings
 from .rows import Row, RowCache
 
-__all__ = ["Row", "RowCache"]
+__all__ = ["METHODS", "FormFactorSettings", "FormFactors", "Row", "RowCache"]

@@ -17,12 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rows import Row
-
-#: Pixels per batch framebuffer (bounds the readback and histogram size).
-BATCH_PIXELS = 1 << 21
-#: Cells of the per-batch histogram (tiles x patches) before the batch is made smaller.
-HISTOGRAM_CELLS = 1 << 23
+from .tiled import TiledRenderer
 
 _VERTEX = "void main() { v_id = pid; gl_Position = viewProj * vec4(pos, 1.0); }"
 _FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : -v_id, 0.0, 0.0, 1.0); }"
@@ -67,39 +62,27 @@ def tangent_frames(normals: np.ndarray):
     return t, np.cross(normals, t)
 
 
-class HemicubeRenderer:
+def rotated_frames(normals: np.ndarray, angles: np.ndarray):
+    """Tangent frames turned about each normal by ``angles`` (radians)."""
+    t, b = tangent_frames(normals)
+    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    return c * t + s * b, c * b - s * t
+
+
+class HemicubeRenderer(TiledRenderer):
     """Rows of form factors for a PatchScene by GPU hemicubes of ``resolution`` pixels.
 
+    ``rotate`` turns each patch's hemicube about its normal by a random angle (fixed by
+    ``seed`` and the patch id), so that regular scenes do not alias the same way everywhere.
     Needs a GPU context (``ensure_gpu_context``); shaders are built on first use.
     """
 
-    def __init__(self, scene, resolution: int = 128):
-        self.scene = scene
+    def __init__(self, scene, resolution: int = 128, rotate: bool = False, seed: int = 0):
+        super().__init__(scene, tile_weights(int(resolution)))
         self.res = int(resolution)
-        self.weights = tile_weights(self.res)
-        lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
-        self.center = 0.5 * (lo + hi)
-        self.centroids = scene.centroids
-        self.diag = float(np.linalg.norm(hi - lo)) or 1.0
-        self.near = 1e-4 * self.diag
-        self.offset = 1e-4 * self.diag
-        self.far = 2.5 * self.diag
+        self.rotate, self.seed = rotate, seed
         self._shader = self._batch = None
-        self._layouts: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-        self.renders = 0
-        tiles_by_pixels = max(1, BATCH_PIXELS // (3 * self.res * self.res))
-        tiles_by_hist = max(1, HISTOGRAM_CELLS // (scene.n + 2))
-        self.tiles_per_batch = min(tiles_by_pixels, tiles_by_hist)
 
-    def rows(self, ids: np.ndarray) -> list[Row]:
-        """Rows for the patch ids given, computed in as few readbacks as fit."""
-        ids = np.asarray(ids, dtype=np.int64)
-        out: list[Row] = []
-        for start in range(0, len(ids), self.tiles_per_batch):
-            out += self._batch_rows(ids[start:start + self.tiles_per_batch])
-        return out
-
-    # -- drawing -----------------------------------------------------------------------
     def _ensure_gpu_objects(self):
         if self._shader is not None:
             return
@@ -122,11 +105,19 @@ class HemicubeRenderer:
         pid = np.repeat(np.arange(1, s.n + 1, dtype=np.float32), 3)
         self._batch = batch_for_shader(self._shader, "TRIS", {"pos": pos, "pid": pid})
 
+    def frames(self, ids: np.ndarray):
+        """Tangent and bitangent of each hemicube (turned at random when ``rotate``)."""
+        normals = self.scene.normals[ids]
+        if not self.rotate:
+            return tangent_frames(normals)
+        angles = np.array([np.random.default_rng((self.seed, int(i))).uniform(0, 2 * np.pi) for i in ids])
+        return rotated_frames(normals, angles)
+
     def _views(self, i: int, t: np.ndarray, b: np.ndarray):
         """(viewport x, y, w, h, view-projection) of the five faces, tile-local pixels."""
-        s, r, h = self.scene, self.res, self.res // 2
-        n = s.normals[i]
-        eye = self.centroids[i] - self.center + self.offset * n
+        r, h = self.res, self.res // 2
+        n = self.scene.normals[i]
+        eye = self.eye(i)
         nr, fr = self.near, self.far
         top = _frustum(-nr, nr, -nr, nr, nr, fr) @ _look(eye, n, b)
         half = _frustum(-nr, nr, 0.0, nr, nr, fr)
@@ -134,64 +125,17 @@ class HemicubeRenderer:
         return [(0, 0, r, r, top), (r, 0, r, h, sides[0]), (r, h, r, h, sides[1]),
                 (2 * r, 0, r, h, sides[2]), (2 * r, h, r, h, sides[3])]
 
-    def _batch_rows(self, ids: np.ndarray) -> list[Row]:
+    def _draw_batch(self, ids, origins):
         import gpu
         from mathutils import Matrix
 
         self._ensure_gpu_objects()
-        s = self.scene
-        cols = max(1, min(len(ids), 4096 // (3 * self.res)))
-        rows_ = -(-len(ids) // cols)
-        width, height = cols * 3 * self.res, rows_ * self.res
-        tangents, bitangents = tangent_frames(s.normals[ids])
-        offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
-        buffer = gpu.types.Buffer("FLOAT", width * height * 4)
-        try:
-            with offscreen.bind():
-                fb = gpu.state.active_framebuffer_get()
-                gpu.state.scissor_test_set(False)
-                gpu.state.viewport_set(0, 0, width, height)
-                fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-                gpu.state.depth_test_set("LESS_EQUAL")
-                gpu.state.depth_mask_set(True)
-                gpu.state.face_culling_set("NONE")
-                self._shader.bind()
-                for k, i in enumerate(ids):
-                    x0, y0 = (k % cols) * 3 * self.res, (k // cols) * self.res
-                    for x, y, w, h, m in self._views(int(i), tangents[k], bitangents[k]):
-                        gpu.state.viewport_set(x0 + x, y0 + y, w, h)
-                        self._shader.uniform_float("viewProj", Matrix(m.tolist()))
-                        self._batch.draw(self._shader)
-                        self.renders += 1
-                fb.read_color(0, 0, width, height, 4, 0, "FLOAT", data=buffer)
-                gpu.state.depth_test_set("NONE")
-                gpu.state.depth_mask_set(False)
-        finally:
-            offscreen.free()
-        image = np.asarray(buffer).reshape(height, width, 4)[:, :, 0]
-        return self._histogram(image, len(ids), cols)
-
-    def _layout(self, rows_: int, cols: int):
-        """Tile index and delta form factor of every framebuffer pixel (cached per grid)."""
-        key = (rows_, cols)
-        if key not in self._layouts:
-            r = self.res
-            tile = np.arange(rows_)[:, None] * cols + np.arange(cols)[None, :]
-            self._layouts[key] = (np.kron(tile, np.ones((r, 3 * r), dtype=np.int64)),
-                                  np.tile(self.weights, (rows_, cols)))
-        return self._layouts[key]
-
-    def _histogram(self, image: np.ndarray, count: int, cols: int) -> list[Row]:
-        n, r = self.scene.n, self.res
-        rows_ = image.shape[0] // r
-        ids = np.rint(image).astype(np.int64)
-        ids = np.where(ids < 0, n + 1, ids)
-        tile_px, weights = self._layout(rows_, cols)
-        used = tile_px < count
-        keys = tile_px[used] * (n + 2) + ids[used]
-        hist = np.bincount(keys, weights[used], minlength=count * (n + 2)).reshape(count, n + 2)
-        out = []
-        for row in hist:
-            idx = np.flatnonzero(row[1:n + 1])
-            out.append(Row(idx, row[1:n + 1][idx], float(row[0]), float(row[n + 1])))
-        return out
+        tangents, bitangents = self.frames(ids)
+        self._shader.bind()
+        for k, i in enumerate(ids):
+            x0, y0 = origins[k]
+            for x, y, w, h, m in self._views(int(i), tangents[k], bitangents[k]):
+                gpu.state.viewport_set(x0 + x, y0 + y, w, h)
+                self._shader.uniform_float("viewProj", Matrix(m.tolist()))
+                self._batch.draw(self._shader)
+                self.renders += 1

@@ -22,6 +22,8 @@ class RowCache:
     """Rows computed by ``compute(ids) -> list[Row]`` in batches, kept while they fit.
 
     ``budget_bytes`` caps what is kept; rows beyond it are recomputed when asked again.
+    A solver that needs every row kept (gathering) calls ``require_all`` first, which refuses
+    with the size it would need when the rows will not fit.
     """
 
     def __init__(self, compute: Callable[[np.ndarray], list[Row]], budget_bytes: int = 2 << 30):
@@ -31,6 +33,21 @@ class RowCache:
         self.rows: dict[int, Row] = {}
         self.computed = 0
         self.seconds = 0.0
+
+    def projected_bytes(self, n: int) -> int:
+        """Bytes all n rows would take: the mean of the rows held so far, else dense (16 n^2)."""
+        if self.rows:
+            return int(self.bytes / len(self.rows) * n)
+        return 16 * n * n + 64 * n
+
+    def require_all(self, n: int):
+        """Raise SceneError when n rows are not expected to fit in the budget."""
+        need = self.projected_bytes(n)
+        if need > self.budget_bytes:
+            raise SceneError(
+                f"keeping all {n:,} form-factor rows needs about {need / 2**30:.2f} GiB, over the "
+                f"cache budget of {self.budget_bytes / 2**30:.2f} GiB: raise the budget, use fewer "
+                f"patches, or a solver that recomputes rows (shooting)")
 
     def get(self, i: int, prefetch: Callable[[], np.ndarray] | None = None) -> Row:
         """Row i; on a miss also compute the rows ``prefetch()`` names, not held yet (one batch)."""

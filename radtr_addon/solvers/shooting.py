@@ -14,7 +14,6 @@ from typing import Callable
 import numpy as np
 
 from ..errors import Cancelled
-from ..formfactors.rows import RowCache
 from .result import SolveResult
 
 #: Rows computed ahead in one batch when a shooter's row is missing.
@@ -22,9 +21,12 @@ PREFETCH = 64
 
 
 class ShootingSolver:
-    """Shooting state that advances in steps, so a modal operator can interleave events."""
+    """Shooting state that advances in steps, so a modal operator can interleave events.
 
-    def __init__(self, scene, rows: RowCache, *, tol: float = 1e-3, max_iterations: int = 10_000):
+    ``rows`` is a ``FormFactors`` or ``RowCache``: anything with ``get(i, prefetch)`` and ``seconds``.
+    """
+
+    def __init__(self, scene, rows, *, tol: float = 1e-3, max_iterations: int = 10_000):
         scene.validate()
         self.scene, self.rows, self.tol, self.max_iterations = scene, rows, tol, max_iterations
         self.area = scene.areas[:, None]
@@ -95,7 +97,7 @@ class ShootingSolver:
             unshot=(self.dB * area).sum(axis=0))
 
 
-def shoot(scene, rows: RowCache, *, tol: float = 1e-3, max_iterations: int = 10_000,
+def shoot(scene, rows, *, tol: float = 1e-3, max_iterations: int = 10_000,
           progress: Callable[[int, float], bool | None] | None = None) -> SolveResult:
     """Solve ``scene`` by shooting to completion.
 

@@ -1,0 +1,110 @@
+"""One interface over every form-factor method: ``FormFactors(scene, settings).row(i)``.
+
+``FormFactorSettings`` names the method and its knobs; ``FormFactors`` builds the method,
+falls back from a GPU method to Embree rays when no GPU context can be had (with a
+warning), and keeps rows in a ``RowCache`` within a byte budget.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import GPUUnavailable, SettingsError
+from .rows import Row, RowCache
+
+METHODS = ("hemicube", "paraboloid", "embree")
+GPU_METHODS = ("hemicube", "paraboloid")
+
+
+@dataclass
+class FormFactorSettings:
+    """Method and knobs; the ones a method does not use are ignored."""
+
+    method: str = "hemicube"
+    resolution: int = 128          # hemicube pixels across the full face / paraboloid disk
+    rotate: bool = False           # hemicube: random turn about the normal per patch
+    split: str = "adaptive"        # paraboloid: none | uniform | adaptive
+    split_level: int = 4           # paraboloid uniform: N x N sub-triangles
+    split_angle: float = 0.1       # paraboloid adaptive: largest sub-edge angle (radians)
+    rays: int = 1024               # embree: rays per row
+    seed: int = 0                  # embree jitter and hemicube rotation
+    origins: str = "area"          # embree: ray origins over the patch or at its centroid
+
+    def label(self) -> str:
+        if self.method == "hemicube":
+            return f"hemicube {self.resolution}" + (" rotated" if self.rotate else "")
+        if self.method == "paraboloid":
+            split = {"uniform": f"uniform {self.split_level}", "adaptive": f"adaptive {self.split_angle:g} rad"}
+            return f"paraboloid {self.resolution} split {split.get(self.split, self.split)}"
+        return f"embree {self.rays} rays"
+
+    def validate(self):
+        from .paraboloid import SPLIT_MODES
+
+        if self.method not in METHODS:
+            raise SettingsError(f"form-factor method must be one of {', '.join(METHODS)}, got '{self.method}'")
+        if self.method == "hemicube" and (self.resolution < 2 or self.resolution % 2):
+            raise SettingsError(f"hemicube resolution must be even and >= 2, got {self.resolution}")
+        if self.split not in SPLIT_MODES:
+            raise SettingsError(f"split mode must be one of {', '.join(SPLIT_MODES)}, got '{self.split}'")
+        if self.rays < 1:
+            raise SettingsError(f"rays per row must be at least 1, got {self.rays}")
+
+
+def make_method(scene, settings: FormFactorSettings):
+    """The renderer/caster for ``settings``; GPU methods need ``ensure_gpu_context`` first."""
+    settings.validate()
+    if settings.method == "hemicube":
+        from .hemicube import HemicubeRenderer
+
+        return HemicubeRenderer(scene, settings.resolution, rotate=settings.rotate, seed=settings.seed)
+    if settings.method == "paraboloid":
+        from .paraboloid import ParaboloidRenderer
+
+        return ParaboloidRenderer(scene, settings.resolution, settings.split, settings.split_level,
+                                  settings.split_angle)
+    from .raycast import EmbreeRays
+
+    return EmbreeRays(scene, settings.rays, settings.seed, settings.origins)
+
+
+class FormFactors:
+    """Rows F[i, :] of a PatchScene by the method ``settings`` names, cached within ``cache_bytes``."""
+
+    def __init__(self, scene, settings: FormFactorSettings | None = None, cache_bytes: int = 2 << 30,
+                 fallback: bool = True):
+        self.scene = scene
+        self.settings = settings or FormFactorSettings()
+        self.warnings: list[str] = []
+        if self.settings.method in GPU_METHODS:
+            from .gpu_context import ensure_gpu_context
+
+            try:
+                ensure_gpu_context()
+            except GPUUnavailable as exc:
+                if not fallback:
+                    raise
+                self.warnings.append(f"{exc}; using Embree rays ({self.settings.rays} per row) instead")
+                self.settings = FormFactorSettings(**{**vars(self.settings), "method": "embree"})
+        self.method = make_method(scene, self.settings)
+        self.cache = RowCache(self.method.rows, cache_bytes)
+
+    @property
+    def seconds(self) -> float:
+        return self.cache.seconds
+
+    def row(self, i: int) -> Row:
+        return self.cache.get(int(i))
+
+    def rows(self, ids) -> list[Row]:
+        """Rows of ``ids``; the ones not cached are computed in one batch."""
+        ids = [int(i) for i in ids]
+        missing = [i for i in ids if i not in self.cache.rows]
+        if missing:
+            self.cache.get(missing[0], prefetch=lambda: np.asarray(missing[1:], dtype=np.int64))
+        return [self.cache.get(i) for i in ids]
+
+    def get(self, i: int, prefetch=None) -> Row:
+        """Row i, computing the rows ``prefetch()`` names with it on a miss (see RowCache.get)."""
+        return self.cache.get(i, prefetch)

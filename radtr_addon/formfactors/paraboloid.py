@@ -1,0 +1,207 @@
+"""Single-view hemisphere form factors (the seed's "paraboloid" method), drawn with ``gpu``.
+
+Projection. A point P seen from the eye along the unit direction d = (x, y, z) in the
+patch's tangent frame (z along the normal) lands at (x, y) on the unit disk: the
+orthographic projection of the unit hemisphere, Nusselt's analogue. The form factor of any
+set of directions is the area of its image on the disk over pi, so every pixel whose centre
+lies in the disk weighs the same, 1 / (pixels in the disk): no per-pixel weight table is
+needed (unlike the dual-paraboloid map (x, y) / (1 + z), whose pixels would weigh
+4 / (pi (1 + x^2 + y^2)^2) dA). Depth is the distance |P - eye|, so nearer surfaces win.
+
+Straight edges. The map is not a perspective projection: a straight edge is an arc on the
+disk, but the rasteriser joins projected vertices by chords, which is the method's known
+error (darker junctions between walls, worst near the rim). The vertex shader therefore
+draws each scene triangle as a barycentric grid of N x N sub-triangles, with one instanced
+draw per grid size N, the parent triangle's corners fetched from a texture:
+
+- ``none``: N = 1, the plain projection.
+- ``uniform``: the same N for every triangle.
+- ``adaptive``: per view, N for each triangle from the largest angle one of its edges
+  subtends at the eye, so that a sub-edge subtends at most ``split_angle`` radians
+  (default 0.1: a chord then strays at most 1.25e-3 of the disk radius from its arc, and
+  the area it cuts off does not shrink with resolution); N is rounded up to a power of two
+  and capped at ``max_split``. Unit squares sharing an edge at 256 px: 0.2 rad -0.7 %,
+  0.1 rad -0.1 %, 0.05 rad -0.04 % against the closed form.
+
+Horizon. Triangles wholly below the tangent plane are not drawn at all. Others are
+clipped by the GPU at the plane (``gl_ClipDistance`` = height above it), and points below
+it are mapped outside the disk (radius 2 - r), so a clipped triangle is cut at the rim
+instead of being folded back over the disk.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .hemicube import tangent_frames
+from .tiled import TiledRenderer, frame_texture
+
+SPLIT_MODES = ("none", "uniform", "adaptive")
+#: Grid sizes available to adaptive splitting.
+ADAPTIVE_LEVELS = (1, 2, 4, 8, 16, 32, 64)
+DEFAULT_SPLIT_ANGLE = 0.1
+
+_VERTEX = """
+vec4 texel(sampler2D tex, int k) { return texelFetch(tex, ivec2(k % 4096, k / 4096), 0); }
+void main() {
+  int t = int(texel(order, first + gl_InstanceID).r);
+  vec3 a = texel(corners, 3 * t).xyz;
+  vec3 b = texel(corners, 3 * t + 1).xyz;
+  vec3 c = texel(corners, 3 * t + 2).xyz;
+  vec3 d = (frame * vec4(a + (b - a) * bary.x + (c - a) * bary.y - eye, 0.0)).xyz;
+  float r = length(d);
+  d /= max(r, 1e-30);
+  vec2 xy = d.xy;
+  if (d.z < 0.0) {
+    float rho = max(length(xy), 1e-30);
+    xy *= (2.0 - rho) / rho;
+  }
+  gl_ClipDistance[0] = d.z;
+  gl_ClipDistance[1] = r - near;
+  v_id = float(t + 1);
+  gl_Position = vec4(xy, 2.0 * (r - near) / (far - near) - 1.0, 1.0);
+}
+"""
+_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : -v_id, 0.0, 0.0, 1.0); }"
+
+
+def disk_weights(res: int) -> np.ndarray:
+    """Equal weights on the pixels whose centres lie in the unit disk, shape (res, res), sum 1."""
+    if res < 2:
+        raise ValueError(f"paraboloid resolution must be at least 2, got {res}")
+    c = -1.0 + (np.arange(res) + 0.5) * 2.0 / res
+    inside = (c[None, :] ** 2 + c[:, None] ** 2) < 1.0
+    return inside / inside.sum()
+
+
+def grid_barycentrics(n: int) -> np.ndarray:
+    """(3 n^2, 2) barycentric (u, v) of the sub-triangles of an n x n grid, same winding."""
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out += [(i, j), (i + 1, j), (i, j + 1)]
+            if i + j < n - 1:
+                out += [(i + 1, j), (i + 1, j + 1), (i, j + 1)]
+    return np.asarray(out, dtype=np.float32) / n
+
+
+class ParaboloidRenderer(TiledRenderer):
+    """Rows of form factors by one hemisphere view per patch, ``resolution`` pixels across.
+
+    ``split`` is one of SPLIT_MODES; ``split_level`` is N for ``uniform``; ``split_angle``
+    and ``max_split`` steer ``adaptive``.
+    """
+
+    def __init__(self, scene, resolution: int = 256, split: str = "adaptive", split_level: int = 4,
+                 split_angle: float = DEFAULT_SPLIT_ANGLE, max_split: int = 32):
+        if split not in SPLIT_MODES:
+            raise ValueError(f"split mode must be one of {', '.join(SPLIT_MODES)}, got '{split}'")
+        super().__init__(scene, disk_weights(int(resolution)))
+        self.res = int(resolution)
+        self.split, self.split_level, self.max_split = split, max(1, int(split_level)), int(max_split)
+        self.split_angle = float(split_angle)
+        self.sub_triangles = 0
+        self._shader = None
+        self._grids: dict[int, object] = {}
+        self._corners = None
+
+    # -- per-view triangle lists -----------------------------------------------------------
+    def levels(self, i: int) -> np.ndarray:
+        """Grid size N per scene triangle for the view of patch i; 0 = not drawn (below horizon)."""
+        s = self.scene
+        n = s.normals[i]
+        rel = s.vertices - (self.eye(i) + self.center)
+        height = rel @ n
+        above = (height[s.triangles] > 0).any(axis=1)
+        above[i] = False
+        if self.split == "none":
+            return above.astype(np.int64)
+        if self.split == "uniform":
+            return above * self.split_level
+        dirs = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-300)[:, None]
+        tri = s.triangles
+        cosines = np.stack([np.einsum("ij,ij->i", dirs[tri[:, a]], dirs[tri[:, b]])
+                            for a, b in ((0, 1), (1, 2), (2, 0))], axis=1)
+        widest = np.arccos(np.clip(cosines.min(axis=1), -1.0, 1.0))
+        want = np.ceil(widest / self.split_angle)
+        steps = np.array([lv for lv in ADAPTIVE_LEVELS if lv <= self.max_split] or [1])
+        level = steps[np.minimum(np.searchsorted(steps, want), len(steps) - 1)]
+        return np.where(above, level, 0)
+
+    def _plan(self, ids: np.ndarray):
+        """Triangle order for a batch and, per view, the (N, first, count) instanced draws."""
+        chunks, draws, first = [], [], 0
+        for i in ids:
+            level = self.levels(int(i))
+            view = []
+            for lv in np.unique(level[level > 0]):
+                tris = np.flatnonzero(level == lv)
+                chunks.append(tris)
+                view.append((int(lv), first, len(tris)))
+                first += len(tris)
+                self.sub_triangles += len(tris) * int(lv) ** 2
+            draws.append(view)
+        order = np.concatenate(chunks) if chunks else np.zeros(1, np.int64)
+        return order.astype(np.float32)[:, None], draws
+
+    # -- drawing ----------------------------------------------------------------------------
+    def _ensure_gpu_objects(self):
+        if self._shader is not None:
+            return
+        import gpu
+
+        info = gpu.types.GPUShaderCreateInfo()
+        info.push_constant("MAT4", "frame")
+        info.push_constant("VEC3", "eye")
+        info.push_constant("FLOAT", "near")
+        info.push_constant("FLOAT", "far")
+        info.push_constant("INT", "first")
+        info.sampler(0, "FLOAT_2D", "corners")
+        info.sampler(1, "FLOAT_2D", "order")
+        info.vertex_in(0, "VEC2", "bary")
+        iface = gpu.types.GPUStageInterfaceInfo("radtr_paraboloid_iface")
+        iface.flat("FLOAT", "v_id")
+        info.vertex_out(iface)
+        info.fragment_out(0, "VEC4", "FragColor")
+        info.vertex_source(_VERTEX)
+        info.fragment_source(_FRAGMENT)
+        self._shader = gpu.shader.create_from_info(info)
+        s = self.scene
+        self._corners = frame_texture((s.vertices[s.triangles.reshape(-1)] - self.center).astype(np.float32))
+
+    def _grid(self, n: int):
+        if n not in self._grids:
+            from gpu_extras.batch import batch_for_shader
+
+            self._grids[n] = batch_for_shader(self._shader, "TRIS", {"bary": grid_barycentrics(n)})
+        return self._grids[n]
+
+    def _draw_batch(self, ids, origins):
+        import gpu
+        from mathutils import Matrix
+
+        self._ensure_gpu_objects()
+        order, draws = self._plan(ids)
+        order_tex = frame_texture(order)
+        t, b = tangent_frames(self.scene.normals[ids])
+        sh = self._shader
+        sh.bind()
+        sh.uniform_sampler("corners", self._corners)
+        sh.uniform_sampler("order", order_tex)
+        sh.uniform_float("near", self.near)
+        sh.uniform_float("far", self.far)
+        gpu.state.clip_distances_set(2)
+        try:
+            for k, i in enumerate(ids):
+                frame = np.eye(4)
+                # (t, -b) across the disk keeps front faces counter-clockwise on screen
+                frame[0, :3], frame[1, :3], frame[2, :3] = t[k], -b[k], self.scene.normals[i]
+                x0, y0 = origins[k]
+                gpu.state.viewport_set(x0, y0, self.res, self.res)
+                sh.uniform_float("frame", Matrix(frame.tolist()))
+                sh.uniform_float("eye", tuple(self.eye(int(i))))
+                for n, first, count in draws[k]:
+                    sh.uniform_int("first", first)
+                    self._grid(n).draw_instanced(sh, instance_start=0, instance_count=count)
+                self.renders += 1
+        finally:
+            gpu.state.clip_distances_set(0)

@@ -1,0 +1,128 @@
+"""Shared machinery of the GPU form-factor methods: many views tiled into one framebuffer.
+
+A method draws each patch's view of the scene into one tile of ``tile_shape`` pixels, every
+front face in its patch id (a float in an RGBA32F target, exact up to 2^24), back faces in
+minus their id, nothing in 0. Many tiles share a framebuffer, so one readback and one
+``numpy.bincount`` against the method's per-pixel weights (``weights``, summing to 1 per
+tile) give many rows. Subclasses set ``weights`` and implement ``_draw_batch``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .rows import Row
+
+#: Pixels per batch framebuffer (bounds the readback and histogram size).
+BATCH_PIXELS = 1 << 21
+#: Cells of the per-batch histogram (tiles x patches) before the batch is made smaller.
+HISTOGRAM_CELLS = 1 << 23
+#: Widest framebuffer used.
+MAX_WIDTH = 4096
+
+
+class TiledRenderer:
+    """Rows of form factors for a PatchScene from per-patch views tiled in framebuffers."""
+
+    def __init__(self, scene, weights: np.ndarray):
+        self.scene = scene
+        self.weights = weights
+        th, tw = weights.shape
+        lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+        self.center = 0.5 * (lo + hi)
+        self.centroids = scene.centroids
+        self.diag = float(np.linalg.norm(hi - lo)) or 1.0
+        self.near = 1e-4 * self.diag
+        self.offset = 1e-4 * self.diag
+        self.far = 2.5 * self.diag
+        self.renders = 0
+        self._layouts: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        tiles_by_pixels = max(1, BATCH_PIXELS // (th * tw))
+        tiles_by_hist = max(1, HISTOGRAM_CELLS // (scene.n + 2))
+        self.tiles_per_batch = min(tiles_by_pixels, tiles_by_hist)
+
+    def eye(self, i: int) -> np.ndarray:
+        """Where patch i looks from, relative to ``center``: its centroid lifted off the surface."""
+        return self.centroids[i] - self.center + self.offset * self.scene.normals[i]
+
+    def rows(self, ids) -> list[Row]:
+        """Rows for the patch ids given, computed in as few readbacks as fit."""
+        ids = np.asarray(ids, dtype=np.int64)
+        out: list[Row] = []
+        for start in range(0, len(ids), self.tiles_per_batch):
+            out += self._rows_of_batch(ids[start:start + self.tiles_per_batch])
+        return out
+
+    def row(self, i: int) -> Row:
+        return self.rows([i])[0]
+
+    def _rows_of_batch(self, ids: np.ndarray) -> list[Row]:
+        import gpu
+
+        th, tw = self.weights.shape
+        cols = max(1, min(len(ids), MAX_WIDTH // tw))
+        rows_ = -(-len(ids) // cols)
+        width, height = cols * tw, rows_ * th
+        origins = [((k % cols) * tw, (k // cols) * th) for k in range(len(ids))]
+        offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
+        buffer = gpu.types.Buffer("FLOAT", width * height * 4)
+        try:
+            with offscreen.bind():
+                fb = gpu.state.active_framebuffer_get()
+                gpu.state.scissor_test_set(False)
+                gpu.state.viewport_set(0, 0, width, height)
+                fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+                gpu.state.depth_test_set("LESS_EQUAL")
+                gpu.state.depth_mask_set(True)
+                gpu.state.face_culling_set("NONE")
+                try:
+                    self._draw_batch(ids, origins)
+                finally:
+                    gpu.state.depth_test_set("NONE")
+                    gpu.state.depth_mask_set(False)
+                fb.read_color(0, 0, width, height, 4, 0, "FLOAT", data=buffer)
+        finally:
+            offscreen.free()
+        image = np.asarray(buffer).reshape(height, width, 4)[:, :, 0]
+        return self._histogram(image, len(ids), cols)
+
+    def _draw_batch(self, ids: np.ndarray, origins: list[tuple[int, int]]):
+        """Draw the view of patch ids[k] into the tile whose lower-left pixel is origins[k]."""
+        raise NotImplementedError
+
+    def _layout(self, rows_: int, cols: int):
+        """Tile index and weight of every framebuffer pixel (cached per grid)."""
+        key = (rows_, cols)
+        if key not in self._layouts:
+            th, tw = self.weights.shape
+            tile = np.arange(rows_)[:, None] * cols + np.arange(cols)[None, :]
+            self._layouts[key] = (np.kron(tile, np.ones((th, tw), dtype=np.int64)),
+                                  np.tile(self.weights, (rows_, cols)))
+        return self._layouts[key]
+
+    def _histogram(self, image: np.ndarray, count: int, cols: int) -> list[Row]:
+        n = self.scene.n
+        rows_ = image.shape[0] // self.weights.shape[0]
+        ids = np.rint(image).astype(np.int64)
+        ids = np.where(ids < 0, n + 1, ids)
+        tile_px, weights = self._layout(rows_, cols)
+        used = (tile_px < count) & (weights > 0)
+        keys = tile_px[used] * (n + 2) + ids[used]
+        hist = np.bincount(keys, weights[used], minlength=count * (n + 2)).reshape(count, n + 2)
+        out = []
+        for row in hist:
+            idx = np.flatnonzero(row[1:n + 1])
+            out.append(Row(idx, row[1:n + 1][idx], float(row[0]), float(row[n + 1])))
+        return out
+
+
+def frame_texture(values: np.ndarray):
+    """A float RGBA32F texture holding ``values`` (k, <=4) as texels, 4096 per texture row."""
+    import gpu
+
+    k = len(values)
+    width = min(max(k, 1), MAX_WIDTH)
+    height = -(-max(k, 1) // width)
+    data = np.zeros((width * height, 4), dtype=np.float32)
+    data[:k, :values.shape[1]] = values
+    return gpu.types.GPUTexture((width, height), format="RGBA32F",
+                                data=gpu.types.Buffer("FLOAT", data.size, data.ravel()))
