@@ -27,6 +27,14 @@ def addon(tmp_path_factory):
     radtr.unregister()
 
 
+@pytest.fixture(scope="session")
+def gpu(addon):
+    """A GPU drawing context for the offscreen form-factor methods."""
+    from radtr_addon.formfactors.gpu_context import ensure_gpu_context
+
+    ensure_gpu_context()
+
+
 @pytest.fixture
 def blend(addon):
     """An empty Blender file with the add-on registered; returns ``bpy``."""

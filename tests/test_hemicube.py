@@ -2,7 +2,9 @@
 import numpy as np
 import pytest
 
-from radtr_addon.formfactors.hemicube import HemicubeRenderer, tile_weights
+from geometry import PARALLEL_UNIT_SQUARES, PERPENDICULAR_UNIT_SQUARES, area_mean_ff, cube, squares
+
+from radtr_addon.formfactors.hemicube import HemicubeRenderer, rotated_frames, tangent_frames, tile_weights
 from radtr_addon.hierarchy import subdivide
 from radtr_addon.scene import PatchScene
 
@@ -15,33 +17,6 @@ def test_weight_table_matches_exact_face_totals():
     assert raw.sum() == pytest.approx(1.0, rel=1e-12)
 
 
-@pytest.fixture(scope="module")
-def gpu(addon):
-    from radtr_addon.formfactors.gpu_context import ensure_gpu_context
-
-    ensure_gpu_context()
-
-
-def squares(top_z=1.0, perpendicular=False):
-    """Unit square facing +z at z=0 and a second one facing it (or standing on its edge x=0)."""
-    if perpendicular:
-        v = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [0, 1, 1]]
-        t = [[0, 1, 2], [0, 2, 3], [0, 3, 5], [0, 5, 4]]
-    else:
-        v = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, top_z], [1, 0, top_z], [1, 1, top_z], [0, 1, top_z]]
-        t = [[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]]
-    return PatchScene(np.array(v, float), t, 0.5, 0.0, [0, 0, 1, 1], 0)
-
-
-def area_mean_ff(scene, res, max_area):
-    h = subdivide(scene, max_area, 1)
-    L = h.leaves
-    src = np.flatnonzero(h.source < 2)
-    rows = HemicubeRenderer(L, res).rows(src)
-    to_other = [r.values[h.source[r.indices] >= 2].sum() for r in rows]
-    return np.dot(L.areas[src], to_other) / L.areas[src].sum()
-
-
 def test_point_to_square(gpu):
     e = 1e-3
     v = np.array([[0.5 - e, 0.5 - e, 0], [0.5 + 2 * e, 0.5 - e, 0], [0.5 - e, 0.5 + 2 * e, 0],
@@ -52,9 +27,20 @@ def test_point_to_square(gpu):
     assert row.values.sum() + row.escaped + row.blocked == pytest.approx(1.0, abs=1e-9)
 
 
-@pytest.mark.parametrize("perpendicular, exact", [(False, 0.199825), (True, 0.200044)])
-def test_square_to_square_within_one_percent(gpu, perpendicular, exact):
-    assert area_mean_ff(squares(perpendicular=perpendicular), 256, 1 / 128) == pytest.approx(exact, rel=0.01)
+@pytest.mark.parametrize("rotate", [False, True])
+@pytest.mark.parametrize("perpendicular, exact", [(False, PARALLEL_UNIT_SQUARES), (True, PERPENDICULAR_UNIT_SQUARES)])
+def test_square_to_square_within_one_percent(gpu, perpendicular, exact, rotate):
+    ff = area_mean_ff(squares(perpendicular=perpendicular), lambda s: HemicubeRenderer(s, 256, rotate), 1 / 128)
+    assert ff == pytest.approx(exact, rel=0.01)
+
+
+def test_rotated_frames_stay_orthonormal_and_turn_by_the_angle():
+    n = np.array([[0, 0, 1.0], [0.6, 0.8, 0], [1.0, 0, 0]])
+    t0, _ = tangent_frames(n)
+    t, b = rotated_frames(n, np.array([0.3, 1.0, 2.5]))
+    np.testing.assert_allclose(np.einsum("ij,ij->i", t, b), 0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(t, b), n, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", t, t0), np.cos([0.3, 1.0, 2.5]), atol=1e-12)
 
 
 def test_back_faces_count_as_blocked(gpu):
@@ -70,10 +56,7 @@ def test_back_faces_count_as_blocked(gpu):
 
 @pytest.mark.parametrize("res", [128, 256])
 def test_closed_cube_rows_sum_to_one(gpu, res):
-    v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
-    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
-    t = [[a, b, c] for a, b, c, d in quads] + [[a, c, d] for a, b, c, d in quads]
-    s = PatchScene(v, t, 0.5, 1.0, 0, 0)
+    s = cube()
     assert np.all(s.normals @ [0.5, 0.5, 0.5] - np.einsum("ij,ij->i", s.normals, s.centroids) > 0)
     leaves = subdivide(s, 1 / 16, 1).leaves
     rows = HemicubeRenderer(leaves, res).rows(np.arange(0, leaves.n, 5))

@@ -33,9 +33,14 @@ def polygon_normal_area(poly: np.ndarray):
 
 
 def clip_to_halfspace(poly: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """The part of ``poly`` where (x - point) . normal >= 0 (Sutherland-Hodgman, one plane)."""
+    """The part of ``poly`` where (x - point) . normal >= 0 (Sutherland-Hodgman, one plane).
+
+    A polygon with no point strictly in front (coplanar or behind) gives an empty array.
+    """
     poly = np.asarray(poly, float)
     d = (poly - point) @ normal
+    if not np.any(d > 0):
+        return np.zeros((0, 3))
     out = []
     for k in range(len(poly)):
         a, b, da, db = poly[k], poly[(k + 1) % len(poly)], d[k], d[(k + 1) % len(poly)]

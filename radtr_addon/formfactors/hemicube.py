@@ -2,16 +2,15 @@
 
 Each patch looks out from its centroid, lifted ``offset`` along its normal so that it does
 not see itself, through one full top face and four half side faces of a unit hemicube.
-Every front face is drawn in its patch id (a float in an RGBA32F target, exact up to 2^24),
-back faces in minus their id, nothing in 0. A pixel's delta form factor is
+Faces are drawn in ids as ``tiled`` describes. A pixel's delta form factor is
 
     top face (z = 1):      dF = dA / (pi (x^2 + y^2 + 1)^2)
     side face (x = +-1):   dF = z dA / (pi (y^2 + z^2 + 1)^2)
 
 with dA = (2 / res)^2, normalised so that the pixels of one hemicube sum to 1 (pixel-centre
 sums overshoot by about 1e-4 at 64 px). One tile of 3 res x res pixels holds a hemicube:
-the top face on the left, the four half faces stacked two by two on the right. Many tiles
-share one framebuffer, so one readback and one ``numpy.bincount`` give many rows.
+the top face on the left, the four half faces stacked two by two on the right, so no pixel
+is wasted on the empty corners of the side faces.
 """
 from __future__ import annotations
 
@@ -20,7 +19,7 @@ import numpy as np
 from .tiled import TiledRenderer
 
 _VERTEX = "void main() { v_id = pid; gl_Position = viewProj * vec4(pos, 1.0); }"
-_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : -v_id, 0.0, 0.0, 1.0); }"
+_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : blocked, 0.0, 0.0, 1.0); }"
 
 
 def tile_weights(res: int) -> np.ndarray:
@@ -96,6 +95,7 @@ class HemicubeRenderer(TiledRenderer):
         iface = gpu.types.GPUStageInterfaceInfo("radtr_hemicube_iface")
         iface.flat("FLOAT", "v_id")
         info.vertex_out(iface)
+        info.push_constant("FLOAT", "blocked")
         info.fragment_out(0, "VEC4", "FragColor")
         info.vertex_source(_VERTEX)
         info.fragment_source(_FRAGMENT)
@@ -132,6 +132,7 @@ class HemicubeRenderer(TiledRenderer):
         self._ensure_gpu_objects()
         tangents, bitangents = self.frames(ids)
         self._shader.bind()
+        self._shader.uniform_float("blocked", self.blocked_id)
         for k, i in enumerate(ids):
             x0, y0 = origins[k]
             for x, y, w, h, m in self._views(int(i), tangents[k], bitangents[k]):

@@ -26,7 +26,7 @@ class FormFactorSettings:
     rotate: bool = False           # hemicube: random turn about the normal per patch
     split: str = "adaptive"        # paraboloid: none | uniform | adaptive
     split_level: int = 4           # paraboloid uniform: N x N sub-triangles
-    split_angle: float = 0.1       # paraboloid adaptive: largest sub-edge angle (radians)
+    split_tolerance: float = 2e-3  # paraboloid adaptive: largest arc-chord gap (disk radii)
     rays: int = 1024               # embree: rays per row
     seed: int = 0                  # embree jitter and hemicube rotation
     origins: str = "area"          # embree: ray origins over the patch or at its centroid
@@ -35,7 +35,7 @@ class FormFactorSettings:
         if self.method == "hemicube":
             return f"hemicube {self.resolution}" + (" rotated" if self.rotate else "")
         if self.method == "paraboloid":
-            split = {"uniform": f"uniform {self.split_level}", "adaptive": f"adaptive {self.split_angle:g} rad"}
+            split = {"uniform": f"uniform {self.split_level}", "adaptive": f"adaptive {self.split_tolerance:g}"}
             return f"paraboloid {self.resolution} split {split.get(self.split, self.split)}"
         return f"embree {self.rays} rays"
 
@@ -63,7 +63,7 @@ def make_method(scene, settings: FormFactorSettings):
         from .paraboloid import ParaboloidRenderer
 
         return ParaboloidRenderer(scene, settings.resolution, settings.split, settings.split_level,
-                                  settings.split_angle)
+                                  settings.split_tolerance)
     from .raycast import EmbreeRays
 
     return EmbreeRays(scene, settings.rays, settings.seed, settings.origins)

@@ -12,16 +12,18 @@ Straight edges. The map is not a perspective projection: a straight edge is an a
 disk, but the rasteriser joins projected vertices by chords, which is the method's known
 error (darker junctions between walls, worst near the rim). The vertex shader therefore
 draws each scene triangle as a barycentric grid of N x N sub-triangles, with one instanced
-draw per grid size N, the parent triangle's corners fetched from a texture:
+draw per grid size N (an instance holds max(1, 64 / N^2) parent triangles), the parent
+triangle's corners fetched from a texture:
 
 - ``none``: N = 1, the plain projection.
 - ``uniform``: the same N for every triangle.
-- ``adaptive``: per view, N for each triangle from the largest angle one of its edges
-  subtends at the eye, so that a sub-edge subtends at most ``split_angle`` radians
-  (default 0.1: a chord then strays at most 1.25e-3 of the disk radius from its arc, and
-  the area it cuts off does not shrink with resolution); N is rounded up to a power of two
-  and capped at ``max_split``. Unit squares sharing an edge at 256 px: 0.2 rad -0.7 %,
-  0.1 rad -0.1 %, 0.05 rad -0.04 % against the closed form.
+- ``adaptive``: per view, N for each triangle from its edges' sagitta s, the gap on the
+  disk between an edge's projected arc and its chord at the arc's midpoint (the gap of a
+  sub-edge falls as 1 / N^2): N = sqrt(s / ``split_tolerance``) rounded up to a power of
+  two, capped at ``max_split``. Edges in a plane through the normal project straight
+  (s = 0) and far or small triangles have tiny s, so only the triangles that need it are
+  split. The area a chord cuts off does not shrink with resolution, so the tolerance is in
+  disk radii (default 2e-3), not pixels.
 
 Horizon. Triangles wholly below the tangent plane are not drawn at all. Others are
 clipped by the GPU at the plane (``gl_ClipDistance`` = height above it), and points below
@@ -38,12 +40,14 @@ from .tiled import TiledRenderer, frame_texture
 SPLIT_MODES = ("none", "uniform", "adaptive")
 #: Grid sizes available to adaptive splitting.
 ADAPTIVE_LEVELS = (1, 2, 4, 8, 16, 32, 64)
-DEFAULT_SPLIT_ANGLE = 0.1
+DEFAULT_SPLIT_TOLERANCE = 2e-3
 
 _VERTEX = """
 vec4 texel(sampler2D tex, int k) { return texelFetch(tex, ivec2(k % 4096, k / 4096), 0); }
 void main() {
-  int t = int(texel(order, first + gl_InstanceID).r);
+  int k = gl_InstanceID * per_instance + int(slot);
+  if (k >= count) { gl_Position = vec4(0.0, 0.0, 2.0, 1.0); v_id = 0.0; return; }
+  int t = int(texel(order, first + k).r);
   vec3 a = texel(corners, 3 * t).xyz;
   vec3 b = texel(corners, 3 * t + 1).xyz;
   vec3 c = texel(corners, 3 * t + 2).xyz;
@@ -61,7 +65,7 @@ void main() {
   gl_Position = vec4(xy, 2.0 * (r - near) / (far - near) - 1.0, 1.0);
 }
 """
-_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : -v_id, 0.0, 0.0, 1.0); }"
+_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : blocked, 0.0, 0.0, 1.0); }"
 
 
 def disk_weights(res: int) -> np.ndarray:
@@ -71,6 +75,19 @@ def disk_weights(res: int) -> np.ndarray:
     c = -1.0 + (np.arange(res) + 0.5) * 2.0 / res
     inside = (c[None, :] ** 2 + c[:, None] ** 2) < 1.0
     return inside / inside.sum()
+
+
+#: Sub-triangles per instance: small grids pack several parent triangles into one instance,
+#: since a software rasteriser pays per instance.
+TRIANGLES_PER_INSTANCE = 64
+
+
+def grid_template(n: int):
+    """(barycentrics (k, 2), slot (k,), parents per instance) of the instanced grid of size n."""
+    per_instance = max(1, TRIANGLES_PER_INSTANCE // (n * n))
+    bary = grid_barycentrics(n)
+    return (np.tile(bary, (per_instance, 1)),
+            np.repeat(np.arange(per_instance, dtype=np.float32), len(bary)), per_instance)
 
 
 def grid_barycentrics(n: int) -> np.ndarray:
@@ -87,19 +104,22 @@ def grid_barycentrics(n: int) -> np.ndarray:
 class ParaboloidRenderer(TiledRenderer):
     """Rows of form factors by one hemisphere view per patch, ``resolution`` pixels across.
 
-    ``split`` is one of SPLIT_MODES; ``split_level`` is N for ``uniform``; ``split_angle``
+    ``split`` is one of SPLIT_MODES; ``split_level`` is N for ``uniform``; ``split_tolerance``
     and ``max_split`` steer ``adaptive``.
     """
 
     def __init__(self, scene, resolution: int = 256, split: str = "adaptive", split_level: int = 4,
-                 split_angle: float = DEFAULT_SPLIT_ANGLE, max_split: int = 32):
+                 split_tolerance: float = DEFAULT_SPLIT_TOLERANCE, max_split: int = 32):
         if split not in SPLIT_MODES:
             raise ValueError(f"split mode must be one of {', '.join(SPLIT_MODES)}, got '{split}'")
         super().__init__(scene, disk_weights(int(resolution)))
         self.res = int(resolution)
         self.split, self.split_level, self.max_split = split, max(1, int(split_level)), int(max_split)
-        self.split_angle = float(split_angle)
+        self.split_tolerance = float(split_tolerance)
         self.sub_triangles = 0
+        # bounding radius of each triangle about its centroid (vertices within it)
+        corners = scene.vertices[scene.triangles]
+        self._radii = np.linalg.norm(corners - self.centroids[:, None], axis=2).max(axis=1)
         self._shader = None
         self._grids: dict[int, object] = {}
         self._corners = None
@@ -117,15 +137,39 @@ class ParaboloidRenderer(TiledRenderer):
             return above.astype(np.int64)
         if self.split == "uniform":
             return above * self.split_level
-        dirs = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-300)[:, None]
-        tri = s.triangles
-        cosines = np.stack([np.einsum("ij,ij->i", dirs[tri[:, a]], dirs[tri[:, b]])
-                            for a, b in ((0, 1), (1, 2), (2, 0))], axis=1)
-        widest = np.arccos(np.clip(cosines.min(axis=1), -1.0, 1.0))
-        want = np.ceil(widest / self.split_angle)
+        level = above.astype(np.int64)
+        # an edge seen under an angle a has a gap of at most a^2 / 8: only wide ones are measured
+        angle = 2 * self._radii / np.maximum(np.linalg.norm(self.centroids - self.center - self.eye(i), axis=1),
+                                             1e-300)
+        wide = np.flatnonzero(above & (angle ** 2 / 8 > self.split_tolerance))
+        sag = self.sagitta(rel, s.triangles[wide], n)
+        want = np.ceil(np.sqrt(sag / self.split_tolerance))
         steps = np.array([lv for lv in ADAPTIVE_LEVELS if lv <= self.max_split] or [1])
-        level = steps[np.minimum(np.searchsorted(steps, want), len(steps) - 1)]
-        return np.where(above, level, 0)
+        level[wide] = steps[np.minimum(np.searchsorted(steps, want), len(steps) - 1)]
+        return level
+
+    @staticmethod
+    def sagitta(rel: np.ndarray, tris: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """Per triangle, the widest gap on the disk between an edge's projected arc and its chord.
+
+        ``rel``: vertices relative to the eye. The gap is measured at the arc's midpoint
+        (the projection of the edge's midpoint direction), in units of the disk radius.
+        """
+        dirs = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-300)[:, None]
+        flat = dirs - np.outer(dirs @ n, n)                      # projection onto the disk plane
+        worst = np.zeros(len(tris))
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            da, db = dirs[tris[:, a]], dirs[tris[:, b]]
+            mid = da + db
+            mid /= np.maximum(np.linalg.norm(mid, axis=1), 1e-300)[:, None]
+            pa, pb = flat[tris[:, a]], flat[tris[:, b]]
+            pm = mid - np.outer(mid @ n, n)
+            chord = pb - pa
+            length = np.linalg.norm(chord, axis=1)
+            gap = np.abs(np.cross(chord, pm - pa) @ n) / np.maximum(length, 1e-300)
+            gap = np.where(length > 1e-12, gap, np.linalg.norm(pm - pa, axis=1))
+            worst = np.maximum(worst, gap)
+        return worst
 
     def _plan(self, ids: np.ndarray):
         """Triangle order for a batch and, per view, the (N, first, count) instanced draws."""
@@ -155,12 +199,16 @@ class ParaboloidRenderer(TiledRenderer):
         info.push_constant("FLOAT", "near")
         info.push_constant("FLOAT", "far")
         info.push_constant("INT", "first")
+        info.push_constant("INT", "count")
+        info.push_constant("INT", "per_instance")
         info.sampler(0, "FLOAT_2D", "corners")
         info.sampler(1, "FLOAT_2D", "order")
         info.vertex_in(0, "VEC2", "bary")
+        info.vertex_in(1, "FLOAT", "slot")
         iface = gpu.types.GPUStageInterfaceInfo("radtr_paraboloid_iface")
         iface.flat("FLOAT", "v_id")
         info.vertex_out(iface)
+        info.push_constant("FLOAT", "blocked")
         info.fragment_out(0, "VEC4", "FragColor")
         info.vertex_source(_VERTEX)
         info.fragment_source(_FRAGMENT)
@@ -169,10 +217,12 @@ class ParaboloidRenderer(TiledRenderer):
         self._corners = frame_texture((s.vertices[s.triangles.reshape(-1)] - self.center).astype(np.float32))
 
     def _grid(self, n: int):
+        """The batch drawing size-n grids and how many parent triangles one instance holds."""
         if n not in self._grids:
             from gpu_extras.batch import batch_for_shader
 
-            self._grids[n] = batch_for_shader(self._shader, "TRIS", {"bary": grid_barycentrics(n)})
+            bary, slot, per_instance = grid_template(n)
+            self._grids[n] = batch_for_shader(self._shader, "TRIS", {"bary": bary, "slot": slot}), per_instance
         return self._grids[n]
 
     def _draw_batch(self, ids, origins):
@@ -185,6 +235,7 @@ class ParaboloidRenderer(TiledRenderer):
         t, b = tangent_frames(self.scene.normals[ids])
         sh = self._shader
         sh.bind()
+        sh.uniform_float("blocked", self.blocked_id)
         sh.uniform_sampler("corners", self._corners)
         sh.uniform_sampler("order", order_tex)
         sh.uniform_float("near", self.near)
@@ -200,8 +251,11 @@ class ParaboloidRenderer(TiledRenderer):
                 sh.uniform_float("frame", Matrix(frame.tolist()))
                 sh.uniform_float("eye", tuple(self.eye(int(i))))
                 for n, first, count in draws[k]:
+                    batch, per_instance = self._grid(n)
                     sh.uniform_int("first", first)
-                    self._grid(n).draw_instanced(sh, instance_start=0, instance_count=count)
+                    sh.uniform_int("count", count)
+                    sh.uniform_int("per_instance", per_instance)
+                    batch.draw_instanced(sh, instance_start=0, instance_count=-(-count // per_instance))
                 self.renders += 1
         finally:
             gpu.state.clip_distances_set(0)

@@ -1,8 +1,9 @@
 """Shared machinery of the GPU form-factor methods: many views tiled into one framebuffer.
 
-A method draws each patch's view of the scene into one tile of ``tile_shape`` pixels, every
-front face in its patch id (a float in an RGBA32F target, exact up to 2^24), back faces in
-minus their id, nothing in 0. Many tiles share a framebuffer, so one readback and one
+A method draws each patch's view of the scene into one tile of ``weights.shape`` pixels,
+every front face in its patch id + 1 (a float in an RGBA32F target, exact up to 2^24), back
+faces in n + 1 (``BLOCKED``, so they add up as "blocked"), nothing in 0; only the red
+channel is read back. Many tiles share a framebuffer, so one readback and one
 ``numpy.bincount`` against the method's per-pixel weights (``weights``, summing to 1 per
 tile) give many rows. Subclasses set ``weights`` and implement ``_draw_batch``.
 """
@@ -35,6 +36,7 @@ class TiledRenderer:
         self.offset = 1e-4 * self.diag
         self.far = 2.5 * self.diag
         self.renders = 0
+        self._offscreen = None
         self._layouts: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         tiles_by_pixels = max(1, BATCH_PIXELS // (th * tw))
         tiles_by_hist = max(1, HISTOGRAM_CELLS // (scene.n + 2))
@@ -63,51 +65,71 @@ class TiledRenderer:
         rows_ = -(-len(ids) // cols)
         width, height = cols * tw, rows_ * th
         origins = [((k % cols) * tw, (k // cols) * th) for k in range(len(ids))]
-        offscreen = gpu.types.GPUOffScreen(width, height, format="RGBA32F")
-        buffer = gpu.types.Buffer("FLOAT", width * height * 4)
+        offscreen, buffer = self._target(width, height)
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            gpu.state.scissor_test_set(False)
+            gpu.state.viewport_set(0, 0, width, height)
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            gpu.state.depth_test_set("LESS_EQUAL")
+            gpu.state.depth_mask_set(True)
+            gpu.state.face_culling_set("NONE")
+            try:
+                self._draw_batch(ids, origins)
+            finally:
+                gpu.state.depth_test_set("NONE")
+                gpu.state.depth_mask_set(False)
+            fb.read_color(0, 0, width, height, 1, 0, "FLOAT", data=buffer)
+        return self._histogram(np.asarray(buffer), len(ids), rows_, cols)
+
+    def _target(self, width: int, height: int):
+        """An offscreen framebuffer and readback buffer of this size, kept for the next batch."""
+        import gpu
+
+        if self._offscreen is None or self._offscreen[0] != (width, height):
+            self.free()
+            self._offscreen = ((width, height), gpu.types.GPUOffScreen(width, height, format="RGBA32F"),
+                               gpu.types.Buffer("FLOAT", width * height))
+        return self._offscreen[1], self._offscreen[2]
+
+    def free(self):
+        """Release the GPU framebuffer (also done when the renderer is garbage-collected)."""
+        if self._offscreen is not None:
+            self._offscreen[1].free()
+            self._offscreen = None
+
+    def __del__(self):
         try:
-            with offscreen.bind():
-                fb = gpu.state.active_framebuffer_get()
-                gpu.state.scissor_test_set(False)
-                gpu.state.viewport_set(0, 0, width, height)
-                fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-                gpu.state.depth_test_set("LESS_EQUAL")
-                gpu.state.depth_mask_set(True)
-                gpu.state.face_culling_set("NONE")
-                try:
-                    self._draw_batch(ids, origins)
-                finally:
-                    gpu.state.depth_test_set("NONE")
-                    gpu.state.depth_mask_set(False)
-                fb.read_color(0, 0, width, height, 4, 0, "FLOAT", data=buffer)
-        finally:
-            offscreen.free()
-        image = np.asarray(buffer).reshape(height, width, 4)[:, :, 0]
-        return self._histogram(image, len(ids), cols)
+            self.free()
+        except Exception:  # interpreter shutdown: the GPU module may be gone already
+            pass
+
+    @property
+    def blocked_id(self) -> float:
+        """The value back faces are drawn in."""
+        return float(self.scene.n + 1)
 
     def _draw_batch(self, ids: np.ndarray, origins: list[tuple[int, int]]):
         """Draw the view of patch ids[k] into the tile whose lower-left pixel is origins[k]."""
         raise NotImplementedError
 
-    def _layout(self, rows_: int, cols: int):
-        """Tile index and weight of every framebuffer pixel (cached per grid)."""
-        key = (rows_, cols)
+    def _layout(self, rows_: int, cols: int, count: int):
+        """Per framebuffer pixel: histogram cell offset (n + 2) x tile, and weight (0 in unused tiles)."""
+        key = (rows_, cols, count)
         if key not in self._layouts:
             th, tw = self.weights.shape
             tile = np.arange(rows_)[:, None] * cols + np.arange(cols)[None, :]
-            self._layouts[key] = (np.kron(tile, np.ones((th, tw), dtype=np.int64)),
-                                  np.tile(self.weights, (rows_, cols)))
+            tile_px = np.kron(tile, np.ones((th, tw), dtype=np.int64)).ravel()
+            weights = np.tile(self.weights, (rows_, cols)).ravel()
+            weights[tile_px >= count] = 0.0
+            self._layouts = {key: (np.minimum(tile_px, count - 1) * (self.scene.n + 2), weights)}
         return self._layouts[key]
 
-    def _histogram(self, image: np.ndarray, count: int, cols: int) -> list[Row]:
+    def _histogram(self, image: np.ndarray, count: int, rows_: int, cols: int) -> list[Row]:
         n = self.scene.n
-        rows_ = image.shape[0] // self.weights.shape[0]
-        ids = np.rint(image).astype(np.int64)
-        ids = np.where(ids < 0, n + 1, ids)
-        tile_px, weights = self._layout(rows_, cols)
-        used = (tile_px < count) & (weights > 0)
-        keys = tile_px[used] * (n + 2) + ids[used]
-        hist = np.bincount(keys, weights[used], minlength=count * (n + 2)).reshape(count, n + 2)
+        base, weights = self._layout(rows_, cols, count)
+        keys = base + image.astype(np.int64)
+        hist = np.bincount(keys, weights, minlength=count * (n + 2)).reshape(count, n + 2)
         out = []
         for row in hist:
             idx = np.flatnonzero(row[1:n + 1])

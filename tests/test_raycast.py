@@ -1,0 +1,68 @@
+"""Embree ray form factors: unbiased against closed forms, deterministic, closed scenes sum to 1."""
+import numpy as np
+import pytest
+from geometry import PARALLEL_UNIT_SQUARES, PERPENDICULAR_UNIT_SQUARES, cube, squares
+
+from radtr_addon.formfactors.closed_form import point_to_polygon, polygon_to_polygon
+from radtr_addon.formfactors.raycast import EmbreeRays
+from radtr_addon.hierarchy import subdivide
+from radtr_addon.scene import PatchScene
+
+
+@pytest.mark.parametrize("perpendicular, exact", [(False, PARALLEL_UNIT_SQUARES), (True, PERPENDICULAR_UNIT_SQUARES)])
+def test_square_to_square_within_three_sigma_at_4096_rays(perpendicular, exact):
+    s = squares(perpendicular=perpendicular)
+    rays = EmbreeRays(s, 4096)
+    rows = rays.rows([0, 1])                 # the two triangles of the first square, equal areas
+    f = [r.values[r.indices >= 2].sum() for r in rows]
+    tris = s.vertices[s.triangles]
+    exact_tri = [sum(polygon_to_polygon(tris[i], tris[j]) for j in (2, 3)) for i in (0, 1)]
+    assert np.mean(exact_tri) == pytest.approx(exact, rel=1e-5)
+    sigma = np.sqrt(sum(e * (1 - e) / 4096 for e in exact_tri)) / 2
+    assert abs(np.mean(f) - exact) < 3 * sigma
+
+
+def test_same_seed_same_rows_other_seed_other_rows():
+    s = squares()
+    a, b, c = (EmbreeRays(s, 256, seed=k).row(0) for k in (0, 0, 1))
+    assert np.array_equal(a.values, b.values)
+    assert not np.array_equal(a.values, c.values)
+
+
+def test_closed_cube_rows_sum_to_one():
+    leaves = subdivide(cube(), 1 / 8, 1).leaves
+    rows = EmbreeRays(leaves, 1024).rows(np.arange(leaves.n))
+    assert max(abs(r.values.sum() - 1) for r in rows) < 1e-3
+    assert max(r.escaped + r.blocked for r in rows) < 1e-3
+
+
+def test_reciprocity_holds_statistically():
+    leaves = subdivide(squares(perpendicular=True), 1 / 4, 1).leaves
+    rows = EmbreeRays(leaves, 16384).rows(np.arange(leaves.n))
+    m = np.zeros((leaves.n, leaves.n))
+    for i, r in enumerate(rows):
+        m[i, r.indices] = r.values
+    af = leaves.areas[:, None] * m
+    big = m > 0.05
+    np.testing.assert_allclose(af[big], af.T[big], rtol=0.1)
+
+
+def test_point_to_patch_is_the_closed_form_times_what_is_visible():
+    s = squares()
+    rays = EmbreeRays(s, 16)
+    p, n = np.array([0.5, 0.5, 0.0]), np.array([0.0, 0.0, 1.0])
+    tri = s.vertices[s.triangles[2]]
+    assert rays.point_to_patch(p, n, 2) == pytest.approx(point_to_polygon(p, n, tri), rel=1e-3)
+    # a blocker half way up covering everything
+    v = np.vstack([s.vertices, [[-5, -5, 0.5], [5, -5, 0.5], [0, 5, 0.5]]])
+    blocked = PatchScene(v, np.vstack([s.triangles, [[8, 9, 10]]]), 0.5, 0.0, 0, 0)
+    assert EmbreeRays(blocked, 16).point_to_patch(p, n, 2) == 0.0
+
+
+def test_centroid_origins_match_the_point_closed_form():
+    e = 1e-3
+    v = np.array([[0.5 - e, 0.5 - e, 0], [0.5 + 2 * e, 0.5 - e, 0], [0.5 - e, 0.5 + 2 * e, 0],
+                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
+    s = PatchScene(v, [[0, 1, 2], [3, 5, 4], [3, 6, 5]], 0.5, 0.0, 0, 0)
+    f = EmbreeRays(s, 65536, origins="centroid").row(0).values.sum()
+    assert f == pytest.approx(0.239456, abs=3 * np.sqrt(0.24 * 0.76 / 65536))
