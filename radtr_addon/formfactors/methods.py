@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..errors import GPUUnavailable, SettingsError
 from .rows import Row, RowCache
 
@@ -99,11 +97,7 @@ class FormFactors:
 
     def rows(self, ids) -> list[Row]:
         """Rows of ``ids``; the ones not cached are computed in one batch."""
-        ids = [int(i) for i in ids]
-        missing = [i for i in ids if i not in self.cache.rows]
-        if missing:
-            self.cache.get(missing[0], prefetch=lambda: np.asarray(missing[1:], dtype=np.int64))
-        return [self.cache.get(i) for i in ids]
+        return self.cache.get_many(ids)
 
     def get(self, i: int, prefetch=None) -> Row:
         """Row i, computing the rows ``prefetch()`` names with it on a miss (see RowCache.get)."""

@@ -131,7 +131,8 @@ class ParaboloidRenderer(TiledRenderer):
         n = s.normals[i]
         rel = s.vertices - (self.eye(i) + self.center)
         height = rel @ n
-        above = (height[s.triangles] > 0).any(axis=1)
+        # zero-area triangles are skipped: the curved map would open collinear points into a triangle
+        above = (height[s.triangles] > 0).any(axis=1) & (s.areas > 0)
         above[i] = False
         if self.split == "none":
             return above.astype(np.int64)

@@ -18,7 +18,7 @@ import numpy as np
 
 from .closed_form import point_to_polygon
 from .hemicube import tangent_frames
-from .rows import Row
+from .rows import Row, rows_skipping_degenerate
 
 #: Rays cast in one Embree call.
 RAYS_PER_CALL = 1 << 20
@@ -52,7 +52,10 @@ class EmbreeRays:
         self.cast = 0
 
     def rows(self, ids) -> list[Row]:
-        ids = np.asarray(ids, dtype=np.int64)
+        """Rows for the patch ids given (zero-area patches: all escaped)."""
+        return rows_skipping_degenerate(self.scene, ids, self._rows)
+
+    def _rows(self, ids: np.ndarray) -> list[Row]:
         per_call = max(1, RAYS_PER_CALL // self.rays)
         out: list[Row] = []
         for start in range(0, len(ids), per_call):

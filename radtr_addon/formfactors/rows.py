@@ -18,6 +18,19 @@ class Row(NamedTuple):
     blocked: float       # fraction hitting back faces (absorbed there)
 
 
+def escaped_row() -> Row:
+    """The row of a patch that sees nothing: all of its (zero) power escapes."""
+    return Row(np.zeros(0, dtype=np.int64), np.zeros(0), 1.0, 0.0)
+
+
+def rows_skipping_degenerate(scene, ids, compute) -> list[Row]:
+    """``compute(ids)`` for patches with a positive area; zero-area patches get ``escaped_row``."""
+    ids = np.asarray(ids, dtype=np.int64)
+    ok = scene.areas[ids] > 0
+    good = iter(compute(ids[ok]) if ok.any() else [])
+    return [next(good) if k else escaped_row() for k in ok]
+
+
 class RowCache:
     """Rows computed by ``compute(ids) -> list[Row]`` in batches, kept while they fit.
 
@@ -54,20 +67,26 @@ class RowCache:
         row = self.rows.get(i)
         if row is not None:
             return row
-        ids = [i]
-        if prefetch is not None:
-            ids += [int(j) for j in prefetch() if int(j) != i and int(j) not in self.rows]
-        t0 = time.perf_counter()
-        computed = self._compute(np.asarray(ids, dtype=np.int64))
-        self.seconds += time.perf_counter() - t0
-        for j, r in zip(ids, computed):
-            self.computed += 1
-            size = r.indices.nbytes + r.values.nbytes + 64
-            if self.bytes + size <= self.budget_bytes:
-                self.rows[j] = r
-                self.bytes += size
-            if j == i:
-                row = r
-        if row is None:
-            raise SceneError(f"form-factor method returned no row for patch {i}")
-        return row
+        extra = [int(j) for j in prefetch()] if prefetch is not None else []
+        return self.get_many([i] + extra)[0]
+
+    def get_many(self, ids) -> list[Row]:
+        """Rows of ``ids``: held ones from the cache, the others computed in one batch."""
+        ids = [int(i) for i in ids]
+        missing = list(dict.fromkeys(i for i in ids if i not in self.rows))
+        fresh: dict[int, Row] = {}
+        if missing:
+            t0 = time.perf_counter()
+            computed = self._compute(np.asarray(missing, dtype=np.int64))
+            self.seconds += time.perf_counter() - t0
+            for j, r in zip(missing, computed):
+                self.computed += 1
+                fresh[j] = r
+                size = r.indices.nbytes + r.values.nbytes + 64
+                if self.bytes + size <= self.budget_bytes:
+                    self.rows[j] = r
+                    self.bytes += size
+        out = [self.rows.get(i) or fresh.get(i) for i in ids]
+        if any(r is None for r in out):
+            raise SceneError(f"form-factor method returned no row for patch {ids[out.index(None)]}")
+        return out

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rows import Row
+from .rows import Row, rows_skipping_degenerate
 
 #: Pixels per batch framebuffer (bounds the readback and histogram size).
 BATCH_PIXELS = 1 << 21
@@ -47,8 +47,10 @@ class TiledRenderer:
         return self.centroids[i] - self.center + self.offset * self.scene.normals[i]
 
     def rows(self, ids) -> list[Row]:
-        """Rows for the patch ids given, computed in as few readbacks as fit."""
-        ids = np.asarray(ids, dtype=np.int64)
+        """Rows for the patch ids given, computed in as few readbacks as fit (zero-area: all escaped)."""
+        return rows_skipping_degenerate(self.scene, ids, self._rows)
+
+    def _rows(self, ids: np.ndarray) -> list[Row]:
         out: list[Row] = []
         for start in range(0, len(ids), self.tiles_per_batch):
             out += self._rows_of_batch(ids[start:start + self.tiles_per_batch])
