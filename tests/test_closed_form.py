@@ -4,8 +4,13 @@ import pytest
 from geometry import PARALLEL_UNIT_SQUARES, PERPENDICULAR_UNIT_SQUARES
 
 from radtr_addon.formfactors.closed_form import (
-    clip_to_halfspace, parallel_rectangles, perpendicular_rectangles, point_to_polygon, polygon_normal_area,
-    polygon_to_polygon)
+    clip_to_halfspace,
+    parallel_rectangles,
+    perpendicular_rectangles,
+    point_to_polygon,
+    polygon_normal_area,
+    polygon_to_polygon,
+)
 
 
 def rect(x0, x1, y0, y1, z=0.0, facing_up=True):
@@ -22,7 +27,8 @@ def test_point_below_square_centre_is_four_corner_terms():
     x = y = 0.5                       # corner formula for a differential element under a corner
     corner = (x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
               + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))) / (2 * np.pi)
-    assert point_to_polygon([0.5, 0.5, 0], [0, 0, 1], rect(0, 1, 0, 1, 1.0, False)) == pytest.approx(4 * corner, rel=1e-12)
+    f = point_to_polygon([0.5, 0.5, 0], [0, 0, 1], rect(0, 1, 0, 1, 1.0, False))
+    assert f == pytest.approx(4 * corner, rel=1e-12)
 
 
 @pytest.mark.parametrize("a, b, c", [(1, 1, 1), (2, 3, 0.5), (0.1, 5, 2), (10, 10, 0.01)])

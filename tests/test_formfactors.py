@@ -2,7 +2,7 @@
 and reciprocity on the Cornell box."""
 import numpy as np
 import pytest
-from geometry import cube, squares
+from geometry import cube
 
 from radtr_addon.errors import GPUUnavailable, SceneError, SettingsError
 from radtr_addon.formfactors import FormFactors, FormFactorSettings, RowCache

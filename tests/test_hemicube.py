@@ -1,7 +1,6 @@
 """Hemicube form factors (GPU offscreen, Mesa llvmpipe headless) against closed forms."""
 import numpy as np
 import pytest
-
 from geometry import PARALLEL_UNIT_SQUARES, PERPENDICULAR_UNIT_SQUARES, area_mean_ff, cube, squares
 
 from radtr_addon.formfactors.hemicube import HemicubeRenderer, rotated_frames, tangent_frames, tile_weights

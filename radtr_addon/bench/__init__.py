@@ -17,13 +17,15 @@ def print_table(rows: list[dict]):
 
 
 def _fmt(v) -> str:
-    return f"{v:.3f}" if isinstance(v, float) else str(v)
+    if isinstance(v, float):
+        return f"{v:.2e}" if 0 < abs(v) < 0.01 else f"{v:.3f}"
+    return str(v)
 
 
 def run_benchmark(name: str, quick: bool = False, json_path: str | None = None) -> int:
-    from . import skeleton
+    from . import formfactors, skeleton
 
-    benches = {"skeleton": skeleton.run}
+    benches = {"skeleton": skeleton.run, "formfactors": formfactors.run}
     if name not in benches:
         raise RadTRError(f"no benchmark '{name}' (have: {', '.join(benches)})")
     rows = benches[name](quick=quick)
