@@ -136,3 +136,24 @@ def test_reciprocity_between_cornell_surfaces(gpu, cornell_patches, settings):
     for a, b in zip(*np.nonzero(ff > 0.01)):
         tol = 0.05 if (a, b) in contact else 0.02
         assert exchange[a, b] == pytest.approx(exchange[b, a], rel=tol), (names[a], names[b])
+
+
+def test_three_methods_light_the_cornell_box_alike(cornell):
+    """Independent methods (GPU hemicube, GPU paraboloid, CPU rays) give the same surface radiosity."""
+    from radtr_addon.blender.pipeline import Settings, SolveJob
+
+    ctx = cornell.context
+    means = {}
+    for method in ("hemicube", "paraboloid", "embree"):
+        settings = Settings(max_area=0.006, method=method, resolution=128, rays=4096, tolerance=1e-4)
+        job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings, log=lambda *_: None)
+        job.run()
+        s = job.leaves
+        lit = s.emission.sum(axis=1) == 0
+        weights = np.bincount(s.object_index[lit], s.areas[lit], minlength=len(s.object_names))
+        sums = np.stack([np.bincount(s.object_index[lit], s.areas[lit] * job.solver.B[lit, c],
+                                     minlength=len(s.object_names)) for c in range(3)], axis=1)
+        means[method] = sums[weights > 0] / weights[weights > 0, None]
+    print({k: np.round(v[:, 0] / means["hemicube"][:, 0], 4) for k, v in means.items()})
+    np.testing.assert_allclose(means["paraboloid"], means["hemicube"], rtol=0.02)
+    np.testing.assert_allclose(means["embree"], means["hemicube"], rtol=0.02)
