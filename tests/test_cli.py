@@ -1,6 +1,7 @@
 """Batch use: ``python -m radtr_addon solve`` writes a .blend and a PNG a person can look at;
 ``bench skeleton --quick`` prints its table and JSON."""
 import json
+import os
 import subprocess
 import sys
 
@@ -9,8 +10,9 @@ from conftest import ROOT
 
 
 def run(*args, cwd=ROOT):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.run([sys.executable, "-m", "radtr_addon", *args], cwd=cwd, capture_output=True,
-                          text=True, timeout=600)
+                          text=True, timeout=600, env=env)
 
 
 def test_solve_bundled_scene_writes_blend_and_png(tmp_path, blend):
@@ -39,3 +41,13 @@ def test_bench_skeleton_quick(tmp_path):
     assert "form_factors" in out.stdout
     rows = json.loads((tmp_path / "b.json").read_text())
     assert rows[0]["patches"] > 800 and rows[0]["shots"] > 0
+
+
+def test_bench_formfactors_quick_orders_the_settings(tmp_path):
+    out = run("bench", "formfactors", "--quick", "--json", str(tmp_path / "f.json"), cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert (tmp_path / "out" / "formfactors.png").stat().st_size > 10_000
+    rms = {r["method"]: r["rms_error"] for r in json.loads((tmp_path / "f.json").read_text())}
+    assert rms["hemicube 256"] < rms["hemicube 64"] / 2
+    assert rms["paraboloid 256 split adaptive 0.002"] < rms["paraboloid 256 split none"] / 5
+    assert rms["embree 4096 rays"] < rms["embree 256 rays"] / 2
