@@ -16,10 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .tiled import TiledRenderer
+from .tiled import TiledRenderer, id_shader
 
 _VERTEX = "void main() { v_id = pid; gl_Position = viewProj * vec4(pos, 1.0); }"
-_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : blocked, 0.0, 0.0, 1.0); }"
 
 
 def tile_weights(res: int) -> np.ndarray:
@@ -85,21 +84,14 @@ class HemicubeRenderer(TiledRenderer):
     def _ensure_gpu_objects(self):
         if self._shader is not None:
             return
-        import gpu
         from gpu_extras.batch import batch_for_shader
 
-        info = gpu.types.GPUShaderCreateInfo()
-        info.push_constant("MAT4", "viewProj")
-        info.vertex_in(0, "VEC3", "pos")
-        info.vertex_in(1, "FLOAT", "pid")
-        iface = gpu.types.GPUStageInterfaceInfo("radtr_hemicube_iface")
-        iface.flat("FLOAT", "v_id")
-        info.vertex_out(iface)
-        info.push_constant("FLOAT", "blocked")
-        info.fragment_out(0, "VEC4", "FragColor")
-        info.vertex_source(_VERTEX)
-        info.fragment_source(_FRAGMENT)
-        self._shader = gpu.shader.create_from_info(info)
+        def declare(info):
+            info.push_constant("MAT4", "viewProj")
+            info.vertex_in(0, "VEC3", "pos")
+            info.vertex_in(1, "FLOAT", "pid")
+
+        self._shader = id_shader("hemicube", _VERTEX, declare)
         s = self.scene
         pos = (s.vertices[s.triangles.ravel()] - self.center).astype(np.float32)
         pid = np.repeat(np.arange(1, s.n + 1, dtype=np.float32), 3)

@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from .hemicube import tangent_frames
-from .tiled import TiledRenderer, frame_texture
+from .tiled import TiledRenderer, frame_texture, id_shader
 
 SPLIT_MODES = ("none", "uniform", "adaptive")
 #: Grid sizes available to adaptive splitting.
@@ -65,7 +65,6 @@ void main() {
   gl_Position = vec4(xy, 2.0 * (r - near) / (far - near) - 1.0, 1.0);
 }
 """
-_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : blocked, 0.0, 0.0, 1.0); }"
 
 
 def disk_weights(res: int) -> np.ndarray:
@@ -192,28 +191,19 @@ class ParaboloidRenderer(TiledRenderer):
     def _ensure_gpu_objects(self):
         if self._shader is not None:
             return
-        import gpu
+        def declare(info):
+            info.push_constant("MAT4", "frame")
+            info.push_constant("VEC3", "eye")
+            for name in ("near", "far"):
+                info.push_constant("FLOAT", name)
+            for name in ("first", "count", "per_instance"):
+                info.push_constant("INT", name)
+            info.sampler(0, "FLOAT_2D", "corners")
+            info.sampler(1, "FLOAT_2D", "order")
+            info.vertex_in(0, "VEC2", "bary")
+            info.vertex_in(1, "FLOAT", "slot")
 
-        info = gpu.types.GPUShaderCreateInfo()
-        info.push_constant("MAT4", "frame")
-        info.push_constant("VEC3", "eye")
-        info.push_constant("FLOAT", "near")
-        info.push_constant("FLOAT", "far")
-        info.push_constant("INT", "first")
-        info.push_constant("INT", "count")
-        info.push_constant("INT", "per_instance")
-        info.sampler(0, "FLOAT_2D", "corners")
-        info.sampler(1, "FLOAT_2D", "order")
-        info.vertex_in(0, "VEC2", "bary")
-        info.vertex_in(1, "FLOAT", "slot")
-        iface = gpu.types.GPUStageInterfaceInfo("radtr_paraboloid_iface")
-        iface.flat("FLOAT", "v_id")
-        info.vertex_out(iface)
-        info.push_constant("FLOAT", "blocked")
-        info.fragment_out(0, "VEC4", "FragColor")
-        info.vertex_source(_VERTEX)
-        info.fragment_source(_FRAGMENT)
-        self._shader = gpu.shader.create_from_info(info)
+        self._shader = id_shader("paraboloid", _VERTEX, declare)
         s = self.scene
         self._corners = frame_texture((s.vertices[s.triangles.reshape(-1)] - self.center).astype(np.float32))
 

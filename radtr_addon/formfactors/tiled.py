@@ -124,7 +124,9 @@ class TiledRenderer:
             tile_px = np.kron(tile, np.ones((th, tw), dtype=np.int64)).ravel()
             weights = np.tile(self.weights, (rows_, cols)).ravel()
             weights[tile_px >= count] = 0.0
-            self._layouts = {key: (np.minimum(tile_px, count - 1) * (self.scene.n + 2), weights)}
+            if len(self._layouts) >= 4:      # full batches and the last, partial one of each call
+                self._layouts.clear()
+            self._layouts[key] = (np.minimum(tile_px, count - 1) * (self.scene.n + 2), weights)
         return self._layouts[key]
 
     def _histogram(self, image: np.ndarray, count: int, rows_: int, cols: int) -> list[Row]:
@@ -137,6 +139,26 @@ class TiledRenderer:
             idx = np.flatnonzero(row[1:n + 1])
             out.append(Row(idx, row[1:n + 1][idx], float(row[0]), float(row[n + 1])))
         return out
+
+
+_ID_FRAGMENT = "void main() { FragColor = vec4(gl_FrontFacing ? v_id : blocked, 0.0, 0.0, 1.0); }"
+
+
+def id_shader(name: str, vertex_source: str, declare):
+    """A shader drawing patch ids: ``declare(info)`` adds the method's inputs; the vertex
+    source sets the flat ``v_id``; back faces get the ``blocked`` push constant."""
+    import gpu
+
+    info = gpu.types.GPUShaderCreateInfo()
+    declare(info)
+    info.push_constant("FLOAT", "blocked")
+    iface = gpu.types.GPUStageInterfaceInfo(f"radtr_{name}_iface")
+    iface.flat("FLOAT", "v_id")
+    info.vertex_out(iface)
+    info.fragment_out(0, "VEC4", "FragColor")
+    info.vertex_source(vertex_source)
+    info.fragment_source(_ID_FRAGMENT)
+    return gpu.shader.create_from_info(info)
 
 
 def frame_texture(values: np.ndarray):
