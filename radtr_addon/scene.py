@@ -1,7 +1,8 @@
 """PatchScene: the triangles a solve works on, as float64 numpy arrays.
 
 Units: emission ``E`` and radiosity ``B`` are exitances in W/m^2 per RGB channel
-(radiance L = B / pi); reflectance ``rho`` is the diffuse albedo in [0, 1).
+(radiance L = B / pi); reflectance ``rho`` is the diffuse albedo in [0, 1] (1 only where light can still leave:
+``solvers.check_energy_decays``).
 """
 from __future__ import annotations
 
@@ -53,8 +54,8 @@ class PatchScene:
         self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64).reshape(-1, 3)
         self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int64).reshape(-1, 3)
         n = len(self.triangles)
-        self.rho = np.ascontiguousarray(np.broadcast_to(self.rho, (n, 3)), dtype=np.float64)
-        self.emission = np.ascontiguousarray(np.broadcast_to(self.emission, (n, 3)), dtype=np.float64)
+        self.rho = np.array(np.broadcast_to(self.rho, (n, 3)), dtype=np.float64)
+        self.emission = np.array(np.broadcast_to(self.emission, (n, 3)), dtype=np.float64)
         self.object_index = np.broadcast_to(np.asarray(self.object_index, dtype=np.int64), (n,)).copy()
         self.material_index = np.broadcast_to(np.asarray(self.material_index, dtype=np.int64), (n,)).copy()
         self.normals, self.areas = triangle_geometry(self.vertices, self.triangles)
@@ -88,7 +89,7 @@ class PatchScene:
             ((self.emission < 0).any(axis=1), "emission is negative"),
             (~np.isfinite(self.rho).all(axis=1), "reflectance is NaN or infinite"),
             ((self.rho < 0).any(axis=1), "reflectance is negative"),
-            ((self.rho >= 1).any(axis=1), "reflectance is 1 or more (energy would never decay)"),
+            ((self.rho > 1).any(axis=1), "reflectance is over 1 (it would create light)"),
             (~(self.areas > 0), "triangle has zero area"),
         ]
         for bad, what in checks:

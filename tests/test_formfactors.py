@@ -17,9 +17,9 @@ def test_row_and_rows_agree_and_are_cached(gpu, settings):
     leaves = subdivide(cube(), 1 / 8, 1).leaves
     ff = FormFactors(leaves, settings)
     rows = ff.rows([3, 5, 7])
-    assert ff.cache.computed == 3
+    assert ff.computed == 3
     one = ff.row(5)
-    assert ff.cache.computed == 3                       # served from the cache
+    assert ff.computed == 3                       # served from the cache
     assert np.array_equal(one.indices, rows[1].indices) and np.array_equal(one.values, rows[1].values)
     assert abs(one.values.sum() + one.escaped + one.blocked - 1) < 1e-9
 
@@ -59,11 +59,11 @@ def test_cache_projects_from_rows_held(gpu):
     leaves = subdivide(cube(), 1 / 8, 1).leaves
     ff = FormFactors(leaves, FormFactorSettings("hemicube", 64), cache_bytes=1 << 30)
     ff.rows(range(8))
-    per_row = ff.cache.bytes / 8
-    assert ff.cache.projected_bytes(leaves.n) == pytest.approx(per_row * leaves.n, rel=1e-6)
+    per_row = ff.bytes / 8
+    assert ff.projected_bytes(leaves.n) == pytest.approx(per_row * leaves.n, rel=1e-6)
     small = FormFactors(leaves, FormFactorSettings("hemicube", 64), cache_bytes=int(per_row * 4))
     small.rows(range(8))
-    assert len(small.cache.rows) <= 4 and small.cache.computed == 8   # the rest is recomputed on demand
+    assert len(small.held) <= 4 and small.computed == 8   # the rest is recomputed on demand
 
 
 def degenerate_scene():

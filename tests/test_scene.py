@@ -22,7 +22,7 @@ def test_geometry():
 @pytest.mark.parametrize("kwargs, message", [
     ({"emission": ((np.nan, 1, 1), (0, 0, 0))}, "patch 0 .*Lamp.*emission is NaN"),
     ({"emission": ((1, 1, 1), (0, -1, 0))}, "patch 1 .*Wall.*paint.*emission is negative"),
-    ({"rho": ((0.5, 0.5, 0.5), (1.0, 0.2, 0.2))}, "patch 1 .*reflectance is 1 or more"),
+    ({"rho": ((0.5, 0.5, 0.5), (1.01, 0.2, 0.2))}, "patch 1 .*reflectance is over 1"),
     ({"rho": ((-0.1, 0.5, 0.5), (0.5, 0.5, 0.5))}, "patch 0 .*reflectance is negative"),
     ({"emission": 0.0}, "nothing emits"),
 ])

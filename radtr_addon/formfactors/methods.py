@@ -2,14 +2,14 @@
 
 ``FormFactorSettings`` names the method and its knobs; ``FormFactors`` builds the method,
 falls back from a GPU method to Embree rays when no GPU context can be had (with a
-warning), and keeps rows in a ``RowCache`` within a byte budget.
+warning), and is the ``RowCache`` of its rows within a byte budget.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from ..errors import GPUUnavailable, SettingsError
-from .rows import Row, RowCache
+from .rows import RowCache
 
 METHODS = ("hemicube", "paraboloid", "embree")
 GPU_METHODS = ("hemicube", "paraboloid")
@@ -67,7 +67,7 @@ def make_method(scene, settings: FormFactorSettings):
     return EmbreeRays(scene, settings.rays, settings.seed, settings.origins)
 
 
-class FormFactors:
+class FormFactors(RowCache):
     """Rows F[i, :] of a PatchScene by the method ``settings`` names, cached within ``cache_bytes``."""
 
     def __init__(self, scene, settings: FormFactorSettings | None = None, cache_bytes: int = 2 << 30,
@@ -86,19 +86,4 @@ class FormFactors:
                 self.warnings.append(f"{exc}; using Embree rays ({self.settings.rays} per row) instead")
                 self.settings = FormFactorSettings(**{**vars(self.settings), "method": "embree"})
         self.method = make_method(scene, self.settings)
-        self.cache = RowCache(self.method.rows, cache_bytes)
-
-    @property
-    def seconds(self) -> float:
-        return self.cache.seconds
-
-    def row(self, i: int) -> Row:
-        return self.cache.get(int(i))
-
-    def rows(self, ids) -> list[Row]:
-        """Rows of ``ids``; the ones not cached are computed in one batch."""
-        return self.cache.get_many(ids)
-
-    def get(self, i: int, prefetch=None) -> Row:
-        """Row i, computing the rows ``prefetch()`` names with it on a miss (see RowCache.get)."""
-        return self.cache.get(i, prefetch)
+        super().__init__(self.method.rows, cache_bytes)

@@ -35,45 +35,51 @@ class RowCache:
     """Rows computed by ``compute(ids) -> list[Row]`` in batches, kept while they fit.
 
     ``budget_bytes`` caps what is kept; rows beyond it are recomputed when asked again.
-    A solver that needs every row kept (gathering) calls ``require_all`` first, which refuses
-    with the size it would need when the rows will not fit.
+    A solver that needs every row (gathering, direct) asks ``fits_all`` first and streams
+    the rows, recomputing them, when they will not fit; ``require_all`` refuses with the size.
     """
 
     def __init__(self, compute: Callable[[np.ndarray], list[Row]], budget_bytes: int = 2 << 30):
         self._compute = compute
         self.budget_bytes = budget_bytes
         self.bytes = 0
-        self.rows: dict[int, Row] = {}
+        self.held: dict[int, Row] = {}
         self.computed = 0
         self.seconds = 0.0
 
     def projected_bytes(self, n: int) -> int:
         """Bytes all n rows would take: the mean of the rows held so far, else dense (16 n^2)."""
-        if self.rows:
-            return int(self.bytes / len(self.rows) * n)
+        if self.held:
+            return int(self.bytes / len(self.held) * n)
         return 16 * n * n + 64 * n
 
-    def require_all(self, n: int):
-        """Raise SceneError when n rows are not expected to fit in the budget."""
-        need = self.projected_bytes(n)
+    def fits_all(self, n: int) -> bool:
+        return self.projected_bytes(n) <= self.budget_bytes
+
+    def require_all(self, n: int, extra_bytes: int = 0, why: str = "keeping all"):
+        """Raise SceneError when n rows (plus ``extra_bytes``) are not expected to fit in the budget."""
+        need = self.projected_bytes(n) + extra_bytes
         if need > self.budget_bytes:
             raise SceneError(
-                f"keeping all {n:,} form-factor rows needs about {need / 2**30:.2f} GiB, over the "
+                f"{why} {n:,} form-factor rows needs about {need / 2**30:.2f} GiB, over the "
                 f"cache budget of {self.budget_bytes / 2**30:.2f} GiB: raise the budget, use fewer "
-                f"patches, or a solver that recomputes rows (shooting)")
+                f"patches, or a solver that recomputes rows (shooting, Jacobi, Gauss-Seidel)")
+
+    def row(self, i: int) -> Row:
+        return self.get(int(i))
 
     def get(self, i: int, prefetch: Callable[[], np.ndarray] | None = None) -> Row:
         """Row i; on a miss also compute the rows ``prefetch()`` names, not held yet (one batch)."""
-        row = self.rows.get(i)
+        row = self.held.get(i)
         if row is not None:
             return row
         extra = [int(j) for j in prefetch()] if prefetch is not None else []
-        return self.get_many([i] + extra)[0]
+        return self.rows([i] + extra)[0]
 
-    def get_many(self, ids) -> list[Row]:
+    def rows(self, ids) -> list[Row]:
         """Rows of ``ids``: held ones from the cache, the others computed in one batch."""
         ids = [int(i) for i in ids]
-        missing = list(dict.fromkeys(i for i in ids if i not in self.rows))
+        missing = list(dict.fromkeys(i for i in ids if i not in self.held))
         fresh: dict[int, Row] = {}
         if missing:
             t0 = time.perf_counter()
@@ -84,9 +90,9 @@ class RowCache:
                 fresh[j] = r
                 size = r.indices.nbytes + r.values.nbytes + 64
                 if self.bytes + size <= self.budget_bytes:
-                    self.rows[j] = r
+                    self.held[j] = r
                     self.bytes += size
-        out = [self.rows.get(i) or fresh.get(i) for i in ids]
+        out = [self.held.get(i) or fresh.get(i) for i in ids]
         if any(r is None for r in out):
             raise SceneError(f"form-factor method returned no row for patch {ids[out.index(None)]}")
         return out

@@ -1,5 +1,47 @@
-"""Radiosity solvers over form-factor rows; each returns a ``SolveResult``."""
-from .result import SolveResult
-from .shooting import ShootingSolver, shoot
+"""Radiosity solvers over form-factor rows, all solving the same system (see ``base``).
 
-__all__ = ["SolveResult", "ShootingSolver", "shoot"]
+``make_solver(method, scene, rows, ...)`` builds one by name; ``solve`` runs it to the end.
+Every solver steps (``step``), so a modal operator can interleave events, and returns a
+``SolveResult`` with the same books.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ..errors import Cancelled, SettingsError
+from .base import Solver, check_energy_decays
+from .direct import DirectSolver
+from .gathering import GatheringSolver
+from .result import SolveResult
+from .shooting import ShootingSolver
+
+#: Solver names, as the CLI, the Scene settings and the benchmarks spell them.
+SOLVERS = ("shooting", "jacobi", "gauss_seidel", "direct")
+
+
+def make_solver(method: str, scene, rows, *, tol: float = 1e-3, max_iterations: int = 10_000,
+                dtype=np.float64) -> Solver:
+    kw = dict(tol=tol, max_iterations=max_iterations, dtype=dtype)
+    if method == "shooting":
+        return ShootingSolver(scene, rows, **kw)
+    if method in ("jacobi", "gauss_seidel"):
+        return GatheringSolver(scene, rows, gauss_seidel=method == "gauss_seidel", **kw)
+    if method == "direct":
+        return DirectSolver(scene, rows, **kw)
+    raise SettingsError(f"solver must be one of {', '.join(SOLVERS)}, got '{method}'")
+
+
+def solve(method: str, scene, rows, *, progress: Callable[[Solver], bool | None] | None = None,
+          **kw) -> SolveResult:
+    """Run solver ``method`` to the end; ``progress(solver)`` may return False to cancel."""
+    solver = make_solver(method, scene, rows, **kw)
+    while not solver.step(16):
+        if progress is not None and progress(solver) is False:
+            raise Cancelled("solve cancelled; nothing was changed")
+    return solver.result()
+
+
+__all__ = ["SOLVERS", "SolveResult", "Solver", "ShootingSolver", "GatheringSolver", "DirectSolver",
+           "check_energy_decays", "make_solver", "solve"]

@@ -6,28 +6,44 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+def _zeros3():
+    return np.zeros(3)
+
+
 @dataclass
 class SolveResult:
     """Radiosity ``B`` (n, 3) in W/m^2 and the power books of the solve, in W per channel.
 
-    ``emitted = absorbed + escaped + blocked + unshot`` holds by construction of the shooting
-    updates; tests check it against independent estimates (an explicit window, Cycles).
+    ``emitted = absorbed + escaped + blocked + unshot`` holds by construction for every
+    solver (``unshot`` is the residual power still to be distributed); tests check the
+    parts against independent estimates (an explicit window, Cycles).
     """
 
     B: np.ndarray
     irradiance: np.ndarray              # H (n, 3), W/m^2 arriving; B = E + rho H
     iterations: int
     converged: bool
-    residual_history: list[float] = field(default_factory=list)  # unshot / emitted power
+    residual_history: list[float] = field(default_factory=list)  # residual / emitted power
+    times: list[float] = field(default_factory=list)             # seconds at each history entry
     seconds: dict[str, float] = field(default_factory=dict)
-    emitted: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    absorbed: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    escaped: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    blocked: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    unshot: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    method: str = ""
+    emitted: np.ndarray = field(default_factory=_zeros3)
+    absorbed: np.ndarray = field(default_factory=_zeros3)
+    escaped: np.ndarray = field(default_factory=_zeros3)
+    blocked: np.ndarray = field(default_factory=_zeros3)
+    unshot: np.ndarray = field(default_factory=_zeros3)
+    ambient: np.ndarray = field(default_factory=_zeros3)   # shooting's ambient radiosity estimate, W/m^2
+
+    @property
+    def residual(self) -> float:
+        return self.residual_history[-1] if self.residual_history else 1.0
 
     def balance_error(self) -> float:
         """|emitted - (absorbed + escaped + blocked + unshot)| / emitted, worst channel."""
         books = self.absorbed + self.escaped + self.blocked + self.unshot
         scale = np.where(self.emitted > 0, self.emitted, 1.0)
         return float(np.max(np.abs(self.emitted - books) / scale))
+
+    def display(self, rho: np.ndarray) -> np.ndarray:
+        """B plus the ambient term rho x ambient (Cohen et al. 1988), for showing partial solves."""
+        return self.B + rho * self.ambient

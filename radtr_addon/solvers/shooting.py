@@ -1,111 +1,77 @@
 """Progressive-refinement shooting (Cohen, Chen, Wallace and Greenberg 1988).
 
-Each step shoots the patch with the most unshot power dB_i A_i (summed over RGB): for every
-patch j it sees, dR_j = rho_j dB_i F_ij A_i / A_j (reciprocity, so only row i is needed), and
-dR_j joins both B_j and the unshot dB_j. The solve stops when the unshot power falls below
-``tol`` times the emitted power (a relative test: the same at any emission scale), after
-``max_iterations`` shots, or when the caller stops stepping (cancel: nothing is written).
+Each step shoots the patch with the most unshot power dB_i A_i (summed over RGB), taken from
+a ``ShooterQueue``: for every patch j it sees, dR_j = rho_j dB_i F_ij A_i / A_j (so only
+row i is needed) joins both B_j and the unshot dB_j. The unshot radiosity dB is exactly the
+residual E + R K B - B of the common system (see ``base``), so the stop test is the one every
+solver uses. The ambient term (same paper) estimates the light still unshot, spread evenly,
+for showing partial solutions: ``SolveResult.display``.
 """
 from __future__ import annotations
 
 import time
-from typing import Callable
 
 import numpy as np
 
-from ..errors import Cancelled
-from .result import SolveResult
+from .base import Solver
+from .queue import ShooterQueue
 
 #: Rows computed ahead in one batch when a shooter's row is missing.
 PREFETCH = 64
+#: Shots between exact recomputations of the unshot totals (kept incrementally in between).
+RESYNC = 1024
 
 
-class ShootingSolver:
-    """Shooting state that advances in steps, so a modal operator can interleave events.
+class ShootingSolver(Solver):
+    """Shooting state that advances one shot per unit; continue a stopped solve with ``resume``."""
 
-    ``rows`` is a ``FormFactors`` or ``RowCache``: anything with ``get(i, prefetch)`` and ``seconds``.
-    """
+    name = "shooting"
 
-    def __init__(self, scene, rows, *, tol: float = 1e-3, max_iterations: int = 10_000):
-        scene.validate()
-        self.scene, self.rows, self.tol, self.max_iterations = scene, rows, tol, max_iterations
-        self.area = scene.areas[:, None]
-        self.B = scene.emission.copy()
-        self.dB = scene.emission.copy()
+    def __init__(self, scene, rows, **kw):
+        super().__init__(scene, rows, **kw)
+        self.B = self.E.copy()
+        self.dB = self.E.copy()
         self.H = np.zeros_like(self.B)
-        self.emitted = scene.emitted_power()
-        self._scale = np.where(self.emitted > 0, self.emitted, 1.0)
         self.escaped = np.zeros(3)
         self.blocked = np.zeros(3)
-        self.unshot_power = (self.dB * self.area).sum(axis=1)
-        self.history: list[float] = []
-        self.iterations = 0
-        self.converged = False
-        self.seconds = 0.0
+        self._area = self.area[:, None].astype(self.dtype)
+        self.queue = ShooterQueue((self.dB * self._area).sum(axis=1))
+        self._unshot = self._unshot_exact()
+        self._record(self._unshot)
 
-    @property
-    def residual(self) -> float:
-        """Unshot power over emitted power, worst channel."""
-        return float(np.max((self.dB * self.area).sum(axis=0) / self._scale))
+    def _unshot_exact(self) -> np.ndarray:
+        return (self.dB * self._area).sum(axis=0, dtype=np.float64)
 
-    @property
-    def done(self) -> bool:
-        return self.converged or self.iterations >= self.max_iterations
-
-    def step(self, count: int = 1) -> bool:
-        """Shoot up to ``count`` patches; True when the solve is finished."""
-        t0 = time.perf_counter()
-        for _ in range(count):
-            if self.done:
-                break
-            residual = self.residual
-            self.history.append(residual)
-            if residual <= self.tol:
-                self.converged = True
-                break
-            self._shoot_one()
-        self.seconds += time.perf_counter() - t0
-        return self.done
-
-    def _shoot_one(self):
-        up, area, rho = self.unshot_power, self.area, self.scene.rho
-        i = int(np.argmax(up))
-        row = self.rows.get(i, prefetch=lambda: np.argpartition(-up, min(PREFETCH, len(up) - 1))[:PREFETCH])
-        power = self.dB[i] * area[i, 0]                   # W per channel leaving patch i
-        j = row.indices
-        irradiance = np.outer(row.values, power) / area[j]
-        self.H[j] += irradiance
-        dR = rho[j] * irradiance
-        self.B[j] += dR
+    def _advance(self, t0: float):
+        queue, area, dt = self.queue, self._area, self.dtype
+        i = queue.pop()
+        row = self.rows.get(i, prefetch=lambda: np.argpartition(
+            -queue.values, min(PREFETCH, len(queue.values) - 1))[:PREFETCH])
+        power = self.dB[i] * area[i, 0]                   # leaving patch i, per channel
         self.dB[i] = 0.0
+        j = row.indices
+        irradiance = (row.values / self.area[j]).astype(dt)[:, None] * power
+        self.H[j] += irradiance
+        dR = self.rho[j] * irradiance
+        self.B[j] += dR
         self.dB[j] += dR
-        up[i] = 0.0
-        up[j] = (self.dB[j] * area[j]).sum(axis=1)
+        gained = dR * area[j]
+        queue.raise_to(j, (self.dB[j] * area[j]).sum(axis=1))
         self.escaped += row.escaped * power
         self.blocked += row.blocked * power
         self.iterations += 1
+        if self.iterations % RESYNC == 0:
+            self._unshot = self._unshot_exact()
+        else:
+            self._unshot = self._unshot - power + gained.sum(axis=0, dtype=np.float64)
+        self._record(self._unshot, time.perf_counter() - t0)
 
-    def result(self) -> SolveResult:
-        area = self.area
-        ff = self.rows.seconds
-        return SolveResult(
-            B=self.B.copy(), irradiance=self.H.copy(), iterations=self.iterations,
-            converged=self.converged, residual_history=list(self.history),
-            seconds={"form_factors": ff, "solve": max(self.seconds - ff, 0.0)},
-            emitted=self.emitted, absorbed=((1.0 - self.scene.rho) * self.H * area).sum(axis=0),
-            escaped=self.escaped.copy(), blocked=self.blocked.copy(),
-            unshot=(self.dB * area).sum(axis=0))
+    def _books(self):
+        return self.B, self.H, self.escaped, self.blocked, self._unshot_exact()
 
+    def _ambient(self) -> np.ndarray:
+        """Cohen's ambient radiosity: unshot power per area, times 1 / (1 - mean reflectance)."""
+        total = self.area.sum()
+        mean_rho = (self.scene.rho * self.area[:, None]).sum(axis=0) / total
+        return self._unshot_exact() / total / np.maximum(1.0 - mean_rho, 1e-6)
 
-def shoot(scene, rows, *, tol: float = 1e-3, max_iterations: int = 10_000,
-          progress: Callable[[int, float], bool | None] | None = None) -> SolveResult:
-    """Solve ``scene`` by shooting to completion.
-
-    ``progress(iteration, residual)`` is called every 16 shots; returning False cancels
-    (raises Cancelled).
-    """
-    solver = ShootingSolver(scene, rows, tol=tol, max_iterations=max_iterations)
-    while not solver.step(16):
-        if progress is not None and progress(solver.iterations, solver.residual) is False:
-            raise Cancelled("solve cancelled; nothing was changed")
-    return solver.result()

@@ -1,0 +1,86 @@
+"""Direct solve of (I - R K) B = E with scipy: the reference for small scenes.
+
+The steps before the last assemble F (see ``matrix``); the last step factors each
+channel's matrix and solves. A matrix denser than ``DENSE_FRACTION`` fills in under sparse
+LU anyway, so it is factored dense by LAPACK (scipy.linalg.lu_factor); sparser ones by
+SuperLU (scipy.sparse.linalg.splu). The memory a factorisation needs is checked against the
+form-factor cache budget before anything is allocated.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import SceneError
+from .base import Solver
+from .matrix import Assembly, transport
+
+#: Matrices with more non-zeros than this fraction of n^2 are factored dense.
+DENSE_FRACTION = 0.05
+
+
+class DirectSolver(Solver):
+    """Assembles F a batch of rows per step, then solves all channels in one step."""
+
+    name = "direct"
+
+    def __init__(self, scene, rows, **kw):
+        super().__init__(scene, rows, **kw)
+        n = scene.n
+        rows.rows(np.unique(np.linspace(0, n - 1, min(n, 64)).astype(np.int64)))   # a size sample
+        dense = rows.projected_bytes(n) / 12 > DENSE_FRACTION * n * n
+        rows.require_all(n, extra_bytes=self.factor_bytes(n) if dense else 0, why="the direct solve of")
+        self._assembly = Assembly(rows, n)
+        self.B = np.zeros((n, 3))
+        self.H = np.zeros((n, 3))
+        self.K = None
+        self._record(self.emitted)
+
+    @staticmethod
+    def factor_bytes(n: int) -> int:
+        """Bytes a dense factorisation of one channel needs (the worst case)."""
+        return 8 * n * n
+
+    @property
+    def phase(self) -> str:
+        if self.K is None:
+            return f"assembling form factors: {self._assembly.cursor:,} of {self.scene.n:,} rows"
+        return "factoring"
+
+    def _advance(self, t0: float):
+        F = self._assembly.step()
+        if F is None:
+            return
+        area = self.area
+        self.K = K = transport(F, area)
+        n = self.scene.n
+        E, rho = self.E.astype(np.float64), self.rho.astype(np.float64)
+        dense = K.nnz > DENSE_FRACTION * n * n
+        if dense and self.factor_bytes(n) > self.rows.budget_bytes:
+            raise SceneError(f"the direct solve of {n:,} patches needs {self.factor_bytes(n) / 2**30:.2f} GiB "
+                             f"to factor, over the budget of {self.rows.budget_bytes / 2**30:.2f} GiB")
+        Kd = K.toarray() if dense else None
+        for c in range(3):
+            if dense:
+                M = -rho[:, c, None] * Kd
+                M[np.diag_indices(n)] += 1.0
+                self.B[:, c] = la.lu_solve(la.lu_factor(M, overwrite_a=True, check_finite=False), E[:, c])
+            else:
+                M = (sp.identity(n, format="csc") - sp.diags(rho[:, c]) @ K).tocsc()
+                self.B[:, c] = spla.splu(M).solve(E[:, c])
+        self.H = K @ self.B
+        self.iterations = 1
+        self._residual = E + rho * self.H - self.B
+        self._record((self._residual * area[:, None]).sum(axis=0), time.perf_counter() - t0)
+        self.converged = True
+
+    def _books(self):
+        out = self.B * self.area[:, None]
+        losses = self._assembly.losses
+        return (self.B, self.H, (out * losses.escaped[:, None]).sum(axis=0),
+                (out * losses.blocked[:, None]).sum(axis=0),
+                (self._residual * self.area[:, None]).sum(axis=0) if self.iterations else self.emitted)
