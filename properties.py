@@ -42,15 +42,29 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     rays: IntProperty(
         name="Rays", default=_D.rays, min=1, soft_max=65536,
         description="Rays per patch (rounded to a square number): error falls as 1 / sqrt(rays)")
+    solver: EnumProperty(
+        name="Solver", default=_D.solver,
+        items=[("shooting", "Shooting", "Progressive refinement: brightest patch first, any scene size"),
+               ("jacobi", "Jacobi", "Gathering sweeps, every patch from the last sweep's light"),
+               ("gauss_seidel", "Gauss-Seidel", "Gathering sweeps using light updated in the same sweep"),
+               ("direct", "Direct", "Sparse/dense LU of the whole system: exact, for small scenes")])
     tolerance: FloatProperty(
-        name="Tolerance", default=_D.tolerance, min=1e-9, max=0.5, precision=6,
-        description="Stop when the unshot power falls below this fraction of the emitted power")
+        name="Tolerance", default=_D.tolerance, min=1e-12, max=0.5, precision=6,
+        description="Stop when the residual (unshot) power falls below this fraction of the emitted power")
     max_iterations: IntProperty(
-        name="Max Shots", default=_D.max_iterations, min=1,
-        description="Stop after this many shooting steps")
+        name="Max Iterations", default=_D.max_iterations, min=1,
+        description="Stop after this many shots (shooting) or sweeps (gathering); Continue goes on")
+    precision: EnumProperty(
+        name="Precision", default=_D.precision,
+        items=[("float64", "Double", "Accumulate in float64"),
+               ("float32", "Single", "Accumulate in float32: less memory traffic, about 1e-6 relative error")])
+    ambient: BoolProperty(
+        name="Ambient Term", default=_D.ambient,
+        description="Shooting: add the light not yet shot as an even ambient term when showing a partial solve")
     max_reflectance: FloatProperty(
-        name="Max Reflectance", default=_D.max_reflectance, min=0.0, max=0.999,
-        description="Reflectances above this are clamped, with a warning naming the material")
+        name="Max Reflectance", default=_D.max_reflectance, min=0.0, max=1.0,
+        description="Reflectances above this are clamped, with a warning naming the material; 1 is "
+                    "accepted where light can escape")
     exposure: FloatProperty(
         name="Exposure", default=_D.exposure, min=0.0, soft_max=16.0, update=_exposure_changed,
         description="Brightness factor of every RadTR display (radiance shown = exposure x B / pi)")
@@ -63,7 +77,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         return Settings(max_area=self.max_area, levels=self.levels,
                         method=self.method, resolution=self.resolution - self.resolution % 2,
                         rotate=self.rotate, split=self.split, split_level=self.split_level, rays=self.rays,
-                        tolerance=self.tolerance, max_iterations=self.max_iterations,
+                        solver=self.solver, tolerance=self.tolerance, max_iterations=self.max_iterations,
+                        precision=self.precision, ambient=self.ambient,
                         max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode)
 
 

@@ -1,10 +1,10 @@
-"""Operators: Subdivide, Solve and Clear (thin: gather settings, call the engine, report)."""
+"""Operators: Subdivide, Solve, Continue and Clear (thin: gather settings, call the engine, report)."""
 import bpy
 
 from .clear import RADTR_OT_clear
-from .solve import RADTR_OT_solve
+from .solve import RADTR_OT_resume, RADTR_OT_solve
 from .subdivide import RADTR_OT_subdivide
 
-CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_clear)
+CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_resume, RADTR_OT_clear)
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

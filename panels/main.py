@@ -1,4 +1,4 @@
-"""RadTR's N-panel: settings, the three operators and a live readout of a running solve."""
+"""RadTR's N-panel: settings, the operators and a live readout (residual, energy) of a running solve."""
 import bpy
 
 from ..operators.solve import running
@@ -20,6 +20,13 @@ class RADTR_PT_main(bpy.types.Panel):
         col.operator("radtr.subdivide", icon="MOD_SUBSURF")
         col.separator()
         col.label(text="Solve")
+        col.prop(s, "solver")
+        if s.solver == "shooting":
+            col.prop(s, "ambient")
+        col.prop(s, "precision")
+        col.prop(s, "tolerance")
+        col.prop(s, "max_iterations")
+        col.label(text="Form Factors")
         col.prop(s, "method")
         if s.method == "embree":
             col.prop(s, "rays")
@@ -31,16 +38,20 @@ class RADTR_PT_main(bpy.types.Panel):
             col.prop(s, "split")
             if s.split == "uniform":
                 col.prop(s, "split_level")
-        col.prop(s, "tolerance")
-        col.prop(s, "max_iterations")
         col.prop(s, "max_reflectance")
         col.prop(s, "mode", expand=True)
-        col.operator("radtr.solve", icon="LIGHT_SUN")
+        row = col.row(align=True)
+        row.operator("radtr.solve", icon="LIGHT_SUN")
+        row.operator("radtr.resume", icon="PLAY", text="Continue")
         job = running["job"]
         if job is not None:
+            solver = job.solver
             box = col.box()
-            box.label(text=f"Shot {job.solver.iterations} of at most {job.solver.max_iterations}")
-            box.label(text=f"Unshot power {job.solver.residual:.2e} of emitted")
+            box.label(text=solver.phase)
+            box.label(text=f"Residual {solver.residual:.2e} of emitted (stop at {solver.tol:g})")
+            e = solver.energy()
+            box.label(text=f"Absorbed {e['absorbed']:.1%}, escaped {e['escaped'] + e['blocked']:.1%}, "
+                           f"unshot {e['unshot']:.1%}")
         col.separator()
         col.prop(s, "exposure")
         col.operator("radtr.clear", icon="TRASH")

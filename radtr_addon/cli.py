@@ -52,6 +52,7 @@ def open_scene(source: str) -> list[str]:
 
 def _settings_args(p: argparse.ArgumentParser):
     from .blender.pipeline import Settings
+    from .solvers import SOLVERS
 
     d = Settings()
     p.add_argument("--max-area", type=float, default=d.max_area,
@@ -64,8 +65,11 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--split", default=d.split, choices=("none", "uniform", "adaptive"), help="paraboloid split")
     p.add_argument("--split-level", type=int, default=d.split_level, help="paraboloid uniform split N")
     p.add_argument("--rays", type=int, default=d.rays, help="embree rays per patch")
-    p.add_argument("--tolerance", type=float, default=d.tolerance, help="unshot/emitted power to stop at")
-    p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots")
+    p.add_argument("--solver", default=d.solver, choices=SOLVERS, help="radiosity solver")
+    p.add_argument("--tolerance", type=float, default=d.tolerance, help="residual/emitted power to stop at")
+    p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots or sweeps")
+    p.add_argument("--precision", default=d.precision, choices=("float32", "float64"), help="accumulation")
+    p.add_argument("--ambient", action="store_true", help="shooting: show unshot light as an ambient term")
     p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
     p.add_argument("--exposure", type=float, default=d.exposure)
 
@@ -75,7 +79,8 @@ def settings_from(args):
 
     return Settings(max_area=args.max_area, levels=args.levels, method=args.method, resolution=args.resolution,
                     rotate=args.rotate, split=args.split, split_level=args.split_level, rays=args.rays,
-                    tolerance=args.tolerance, max_iterations=args.iterations,
+                    solver=args.solver, tolerance=args.tolerance, max_iterations=args.iterations,
+                    precision=args.precision, ambient=args.ambient,
                     max_reflectance=args.max_reflectance, exposure=args.exposure)
 
 

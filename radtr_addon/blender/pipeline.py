@@ -1,9 +1,10 @@
 """One solve of a Blender scene, stage by stage: the code the operators and the CLI share.
 
-``SolveJob`` reads the scene, subdivides, sets up form factors and then shoots in steps
-(``advance``), so the Solve operator can run it from a modal timer with a progress bar
-and ESC; ``finish`` writes the result. Until ``finish`` nothing in the file changes, so
-dropping the job is a clean cancel.
+``SolveJob`` reads the scene, subdivides, sets up form factors and a solver, then advances
+the solver in steps (``advance``), so the Solve operator can run it from a modal timer with
+a progress bar and ESC; ``finish`` writes the result. Until ``finish`` nothing in the file
+changes, so dropping the job is a clean cancel. A job stopped at its iteration cap can be
+continued (``resume``) and finished again.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import numpy as np
 
 from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
-from ..solvers.shooting import ShootingSolver
+from ..solvers import make_solver
 from .extract import extract, source_objects
 from .write import write_results
 
@@ -35,8 +36,11 @@ class Settings:
     split: str = "adaptive"        # paraboloid: none | uniform | adaptive
     split_level: int = 4           # paraboloid uniform split N
     rays: int = 1024               # embree rays per row
-    tolerance: float = 1e-3        # unshot / emitted power
-    max_iterations: int = 20_000
+    solver: str = "shooting"       # shooting | jacobi | gauss_seidel | direct
+    tolerance: float = 1e-3        # residual (unshot) power / emitted power
+    max_iterations: int = 20_000   # shots or sweeps
+    precision: str = "float64"     # accumulation: float32 | float64
+    ambient: bool = False          # shooting: show unshot light as Cohen's ambient term
     max_reflectance: float = 0.95
     exposure: float = 1.0
     mode: str = "COPY"             # or "REPLACE"
@@ -83,8 +87,9 @@ class SolveJob:
         for w in self.rows.warnings:
             log(f"RadTR warning: {w}")
         self.stats.warnings += self.rows.warnings
-        self.solver = ShootingSolver(self.leaves, self.rows, tol=settings.tolerance,
-                                     max_iterations=settings.max_iterations)
+        with self._stage("solver_init"):
+            self.solver = make_solver(settings.solver, self.leaves, self.rows, tol=settings.tolerance,
+                                      max_iterations=settings.max_iterations, dtype=settings.precision)
         self.result = None
 
     @contextmanager
@@ -102,19 +107,30 @@ class SolveJob:
         if s.done:
             return 1.0
         r = max(s.residual, 1e-300)
-        by_res = np.log(r) / np.log(self.settings.tolerance) if r < 1 else 0.0
+        by_res = np.log(r) / np.log(max(self.settings.tolerance, 1e-300)) if r < 1 else 0.0
         return float(np.clip(max(by_res, s.iterations / s.max_iterations), 0.0, 1.0))
 
+    @property
+    def readout(self) -> str:
+        """One line on where the solve stands, for the status bar and the N-panel."""
+        s = self.solver
+        return (f"{s.phase}: residual {s.residual:.2e} (stop at {s.tol:g}), "
+                f"{s.seconds:.1f} s")
+
     def advance(self, seconds: float = 0.1) -> bool:
-        """Shoot for about ``seconds``; True when the solve is finished."""
+        """Step the solver for about ``seconds``; True when the solve is finished."""
         end = time.perf_counter() + seconds
         while time.perf_counter() < end:
             if self.solver.step(8):
                 return True
         return self.solver.done
 
+    def resume(self, more_iterations: int):
+        """Let a solve that stopped at its iteration cap go on for ``more_iterations``."""
+        self.solver.resume(more_iterations)
+
     def run(self, progress=None) -> "SolveJob":
-        """Shoot to the end; ``progress(job)`` after each slice may return False to cancel."""
+        """Solve to the end; ``progress(job)`` after each slice may return False to cancel."""
         from ..errors import Cancelled
 
         while not self.advance(0.25):
@@ -124,18 +140,22 @@ class SolveJob:
 
     def finish(self) -> list:
         """Write the result into the file; returns the result objects."""
-        self.result = self.solver.result()
-        self.stats.seconds["form_factors"] = self.result.seconds["form_factors"]
-        self.stats.seconds["solve"] = self.result.seconds["solve"]
+        self.result = r = self.solver.result()
+        self.stats.seconds["form_factors"] = r.seconds["form_factors"]
+        self.stats.seconds["solve"] = r.seconds["solve"]
+        B = r.display(self.leaves.rho) if self.settings.ambient else r.B
         with self._stage("write"):
-            objects = write_results(self.bl_scene, self.extraction, self.leaves, self.result.B,
+            objects = write_results(self.bl_scene, self.extraction, self.leaves, B,
                                     self.settings.exposure, self.settings.mode)
-        r = self.result
-        self.log(f"RadTR: {self.leaves.n} patches, {r.iterations} shots, residual "
-                 f"{r.residual_history[-1] if r.residual_history else 0:.2e}, "
-                 f"{'converged' if r.converged else 'stopped at the iteration cap'}; "
-                 f"energy balance error {r.balance_error():.1e}")
+        self.log(f"RadTR: {self.summary()}")
         return objects
+
+    def summary(self) -> str:
+        r = self.result
+        unit = "shots" if r.method == "shooting" else "sweeps" if r.method != "direct" else "solve"
+        state = "converged" if r.converged else "stopped at the iteration cap (Continue goes on)"
+        return (f"{self.leaves.n:,} patches, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
+                f"{state}; energy balance error {r.balance_error():.1e}")
 
 
 def solve(context, settings: Settings, log=print, progress=None) -> SolveJob:

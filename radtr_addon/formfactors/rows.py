@@ -35,8 +35,9 @@ class RowCache:
     """Rows computed by ``compute(ids) -> list[Row]`` in batches, kept while they fit.
 
     ``budget_bytes`` caps what is kept; rows beyond it are recomputed when asked again.
-    A solver that needs every row (gathering, direct) asks ``fits_all`` first and streams
-    the rows, recomputing them, when they will not fit; ``require_all`` refuses with the size.
+    A solver that needs every row asks ``projected_bytes`` first: gathering streams the rows,
+    recomputing them, when they will not fit; the direct solve calls ``require_all``, which
+    refuses with the size.
     """
 
     def __init__(self, compute: Callable[[np.ndarray], list[Row]], budget_bytes: int = 2 << 30):
@@ -52,9 +53,6 @@ class RowCache:
         if self.held:
             return int(self.bytes / len(self.held) * n)
         return 16 * n * n + 64 * n
-
-    def fits_all(self, n: int) -> bool:
-        return self.projected_bytes(n) <= self.budget_bytes
 
     def require_all(self, n: int, extra_bytes: int = 0, why: str = "keeping all"):
         """Raise SceneError when n rows (plus ``extra_bytes``) are not expected to fit in the budget."""

@@ -145,6 +145,14 @@ class Solver:
         """(B, H, escaped, blocked, unshot) in scaled units; B = E + rho H."""
         raise NotImplementedError
 
+    def energy(self) -> dict[str, float]:
+        """Where the emitted light has gone so far, as fractions of it (worst-lit channel summed)."""
+        _, H, escaped, blocked, unshot = self._books()
+        absorbed = ((1.0 - self.rho) * H * self.area[:, None]).sum(axis=0, dtype=np.float64)
+        total = self.emitted.sum()
+        return {k: float(np.sum(v) / total) for k, v in
+                (("absorbed", absorbed), ("escaped", escaped), ("blocked", blocked), ("unshot", unshot))}
+
     def result(self) -> SolveResult:
         B, H, escaped, blocked, unshot = self._books()
         s, area = self.scale, self.area[:, None]

@@ -1,11 +1,13 @@
 """Gathering: Jacobi and Gauss-Seidel sweeps of B = E + R K B (see ``base``), from B = 0.
 
 Rows come from the form-factor cache. When all of them are expected to fit in its budget
-(``RowCache.fits_all``), the first steps assemble F as one sparse matrix and a Jacobi sweep
-is one product, K B = F^T (A B) / A. When they do not fit, every sweep streams the rows in
-batches and the method recomputes those the cache could not keep.
+(``RowCache.projected_bytes``, counting the matrices built from them), the first steps assemble K
+as one sparse matrix: a Jacobi sweep is one product K B, a Gauss-Seidel sweep one sparse
+triangular solve per channel, (I - R (K_lower + K_diag)) B' = E + R K_upper B. When they do
+not fit, every sweep streams the rows in batches (the cache recomputes those it could not
+keep) and both methods scatter them by columns.
 
-Row j of F is column j of K, so Gauss-Seidel runs by columns: with the patches in order,
+Row j of F is column j of K, so streamed Gauss-Seidel runs by columns: with the patches in order,
 ``lower[i]`` collects K_ij B_j from patches j < i already updated in this sweep and
 ``upper[i]`` those from j > i, updated in the previous sweep; B_j is updated from both
 (its own K_jj term solved for) when its turn comes, then its column is scattered. After the
@@ -16,9 +18,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from .base import Solver
-from .matrix import BATCH, Assembly, RowLosses
+from .matrix import BATCH, Assembly, RowLosses, transport
+
+#: Matrices held in matrix mode, in units of the rows' size: K, and for Gauss-Seidel its
+#: upper part and three lower-triangular systems.
+MATRIX_COPIES = 5
 
 
 class GatheringSolver(Solver):
@@ -40,8 +48,9 @@ class GatheringSolver(Solver):
         self._upper_next = np.zeros_like(self.E)
         probe = np.unique(np.linspace(0, n - 1, min(n, 64)).astype(np.int64))
         rows.rows(probe)                        # so the cache can project the size of all rows
-        self.F = None
-        self._assembly = Assembly(rows, n, self.dtype) if rows.fits_all(n) else None
+        self.K = None
+        fits = rows.projected_bytes(n) * MATRIX_COPIES <= rows.budget_bytes
+        self._assembly = Assembly(rows, n, self.dtype) if fits else None
         self.losses = self._assembly.losses if self._assembly else RowLosses(n)
         self._record((self.E * self._area).sum(axis=0, dtype=np.float64))
 
@@ -54,12 +63,13 @@ class GatheringSolver(Solver):
     def _advance(self, t0: float):
         n = self.scene.n
         if self._assembly is not None:
-            self.F = self._assembly.step()
-            if self.F is not None:
+            F = self._assembly.step()
+            if F is not None:
                 self._assembly = None
+                self._prepare(F)
             return
-        if self.F is not None and not self.gauss_seidel:
-            self._lower = (self.F.T @ (self.B * self._area)) / self._area
+        if self.K is not None:
+            self._matrix_sweep()
             self._cursor = n
         else:
             ids = np.arange(self._cursor, min(self._cursor + BATCH, n))
@@ -69,11 +79,25 @@ class GatheringSolver(Solver):
         if self._cursor == n:
             self._end_sweep(t0)
 
+    def _prepare(self, F):
+        self.K = transport(F, self.area).astype(self.dtype)
+        if self.gauss_seidel:
+            lower = sp.tril(self.K, format="csr")
+            self._K_upper = sp.triu(self.K, 1, format="csr")
+            eye = sp.identity(self.scene.n, dtype=self.dtype, format="csr")
+            self._systems = [(eye - sp.diags(self.rho[:, c]) @ lower).tocsr() for c in range(3)]
+
+    def _matrix_sweep(self):
+        if not self.gauss_seidel:
+            self._lower = self.K @ self.B
+            return
+        rhs = self.E + self.rho * (self._K_upper @ self.B)
+        for c, system in enumerate(self._systems):
+            self.B[:, c] = spla.spsolve_triangular(system, rhs[:, c], lower=True)
+        self._lower = self.K @ self.B           # K B for the new B: the books and the residual
+
     def _columns(self, ids):
-        """(indices, values) of rows ``ids`` of F, from the matrix or the cache."""
-        if self.F is not None:
-            F = self.F
-            return [(F.indices[F.indptr[j]:F.indptr[j + 1]], F.data[F.indptr[j]:F.indptr[j + 1]]) for j in ids]
+        """(indices, values) of rows ``ids`` of F from the cache."""
         rows = self.rows.rows(ids)
         if self.iterations == 0:
             self.losses.note(ids, rows)
@@ -95,9 +119,10 @@ class GatheringSolver(Solver):
     def _end_sweep(self, t0: float):
         self.iterations += 1
         if self.gauss_seidel:
-            self.H = self._lower + self._upper_next + self.losses.self_ff[:, None].astype(self.dtype) * self.B
-            self._upper, self._upper_next = self._upper_next, np.zeros_like(self.E)
-            self.B_books = self.B.copy()
+            if self.K is None:                   # streamed: K B = lower + upper + K_jj B_j
+                self._lower += self._upper_next + self.losses.self_ff[:, None].astype(self.dtype) * self.B
+                self._upper, self._upper_next = self._upper_next, np.zeros_like(self.E)
+            self.H, self.B_books = self._lower, self.B.copy()
             self._residual = self.E + self.rho * self.H - self.B
         else:
             self.H, self.B_books = self._lower, self.B
