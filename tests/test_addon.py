@@ -113,3 +113,53 @@ def test_subdivide_shows_patches(cornell):
     assert bpy.ops.radtr.subdivide() == {"FINISHED"}
     n = sum(len(o.data.polygons) for o in bpy.data.collections[RESULT_COLLECTION].objects)
     assert n > 200
+
+
+def test_continue_goes_on_from_the_iteration_cap(addon, cornell):
+    bpy = cornell
+    small(bpy, max_iterations=40, tolerance=1e-4)
+    assert bpy.ops.radtr.resume.poll() is False          # nothing to continue yet
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    job = addon.operators.solve.running["last"]
+    assert (job.result.iterations, job.result.converged) == (40, False)
+    first = list(job.result.residual_history)
+    floor = bpy.data.objects["floor_radtr"].data
+    before = np.empty(len(floor.polygons) * 4, dtype=np.float32)
+    floor.attributes["radtr_patch"].data.foreach_get("color", before)
+    assert bpy.ops.radtr.resume() == {"FINISHED"}
+    assert job.result.iterations == 80
+    assert job.result.residual_history[:41] == first and len(job.result.residual_history) == 81
+    floor = bpy.data.objects["floor_radtr"].data
+    after = np.empty(len(floor.polygons) * 4, dtype=np.float32)
+    floor.attributes["radtr_patch"].data.foreach_get("color", after)
+    assert after.sum() > before.sum()                    # more light has been shot onto the floor
+
+
+@pytest.mark.parametrize("solver", ["jacobi", "gauss_seidel", "direct"])
+def test_every_solver_through_the_operator(cornell, solver):
+    bpy = cornell
+    small(bpy, solver=solver, method="embree", rays=64)
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    assert len(bpy.data.collections[RESULT_COLLECTION].objects) == 8
+
+
+def test_closed_box_reflecting_everything_is_refused(blend):
+    """Inward-facing cube, reflectance 1 and emitting: light would bounce for ever."""
+    from geometry import cube
+
+    bpy = blend
+    c = cube()
+    mesh = bpy.data.meshes.new("box")
+    mesh.from_pydata(c.vertices.tolist(), [], c.triangles.tolist())
+    mat = bpy.data.materials.new("mirror white")
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (1, 1, 1, 1)
+    bsdf.inputs["Emission Color"].default_value = (1, 1, 1, 1)
+    bsdf.inputs["Emission Strength"].default_value = 1.0
+    mesh.materials.append(mat)
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("box", mesh))
+    small(bpy, max_reflectance=1.0, method="embree", rays=64, max_area=0.1)
+    before = snapshot(bpy)
+    with pytest.raises(RuntimeError, match="never decay in channel R: .*object 'box'"):
+        bpy.ops.radtr.solve()
+    assert snapshot(bpy) == before

@@ -3,6 +3,7 @@ give clear errors or documented repairs, never a traceback."""
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from conftest import ROOT, SHARED_OBJ
 
@@ -24,6 +25,20 @@ def test_embree_cornell_box_solves_with_warnings(blend):
     assert job.result.balance_error() < 1e-9
     light = job.leaves.material_names.index("light")
     assert job.leaves.emission[job.leaves.material_index == light].min() == pytest.approx(3.14159265 * 20)
+
+
+@needs_data
+def test_embree_cornell_box_with_reflectance_one_solves_because_light_escapes(blend):
+    """The file's white walls reflect everything (Kd 1). With Max Reflectance 1 they are kept:
+    the box is open at the front (its front wall is commented out) and the coloured walls
+    absorb the other channels, so light decays and shooting converges."""
+    load_obj(SHARED_OBJ / "cornell_box.obj")
+    job = solve(blend.context, Settings(max_area=8000.0, resolution=32, tolerance=1e-2, max_reflectance=1.0),
+                log=lambda *_: None)
+    r = job.result
+    assert job.leaves.rho.max() == 1.0 and not any("clamped" in w for w in job.stats.warnings)
+    assert r.converged and r.balance_error() < 1e-9
+    assert np.all(r.escaped > 0.25 * r.emitted)
 
 
 @needs_data
