@@ -66,3 +66,20 @@ def test_centroid_origins_match_the_point_closed_form():
     s = PatchScene(v, [[0, 1, 2], [3, 5, 4], [3, 6, 5]], 0.5, 0.0, 0, 0)
     f = EmbreeRays(s, 65536, origins="centroid").row(0).values.sum()
     assert f == pytest.approx(0.239456, abs=3 * np.sqrt(0.24 * 0.76 / 65536))
+
+
+def test_final_gather_at_a_point_matches_the_closed_form():
+    """Irradiance at the centre below an emitting unit square: F(point -> square) x B."""
+    from geometry import squares
+
+    from radtr_addon.formfactors.closed_form import point_to_polygon
+    from radtr_addon.reconstruct import gather
+
+    s = squares()
+    B = np.zeros((s.n, 3))
+    B[2:] = [1.0, 2.0, 3.0]                        # the top square (facing down) shines
+    point, normal = np.array([0.5, 0.5, 0.0]), np.array([0.0, 0.0, 1.0])
+    exact = point_to_polygon(point, normal, np.array([[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1.0]]))
+    H = gather(s, B, point[None], normal[None], rays=16384)
+    sigma = np.sqrt(exact * (1 - exact) / 16384)
+    np.testing.assert_allclose(H[0], exact * np.array([1.0, 2.0, 3.0]), atol=3 * sigma * 3)

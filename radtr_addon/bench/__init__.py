@@ -23,13 +23,17 @@ def _fmt(v) -> str:
 
 
 def run_benchmark(name: str, quick: bool = False, json_path: str | None = None) -> int:
-    from . import formfactors, skeleton
+    """Run benchmark ``name``; it returns one table (rows) or several ({title: rows})."""
+    from . import formfactors, skeleton, solvers
 
-    benches = {"skeleton": skeleton.run, "formfactors": formfactors.run}
+    benches = {"skeleton": skeleton.run, "formfactors": formfactors.run, "solvers": solvers.run}
     if name not in benches:
         raise RadTRError(f"no benchmark '{name}' (have: {', '.join(benches)})")
     rows = benches[name](quick=quick)
-    print_table(rows)
+    for title, table in (rows.items() if isinstance(rows, dict) else [("", rows)]):
+        if title:
+            print(f"\n== {title}")
+        print_table(table)
     if json_path:
         with open(json_path, "w") as fh:
             json.dump(rows, fh, indent=2)

@@ -65,10 +65,10 @@ class EmbreeRays:
     def row(self, i: int) -> Row:
         return self.rows([i])[0]
 
-    def _samples(self, i: int):
-        """Stratified direction samples (u, v) and origin samples for patch i."""
+    def _samples(self, key):
+        """Stratified direction samples (u, v) and origin samples, seeded by ``key``."""
         m = self.side
-        rng = np.random.default_rng((self.seed, int(i)))
+        rng = np.random.default_rng((self.seed, *np.atleast_1d(key).tolist()))
         cells = np.arange(m * m)
         u = (cells // m + rng.random(m * m)) / m
         v = (cells % m + rng.random(m * m)) / m
@@ -77,19 +77,38 @@ class EmbreeRays:
 
     def _rows_of_batch(self, ids: np.ndarray) -> list[Row]:
         s, k, m2 = self.scene, len(ids), self.rays
-        samples = [self._samples(i) for i in ids]
-        u = np.stack([x[0] for x in samples])
-        v = np.stack([x[1] for x in samples])
-        radius, phi = np.sqrt(u), 2 * np.pi * v
+        samples = [self._samples(int(i)) for i in ids]
         normals = s.normals[ids]
-        t, b = tangent_frames(normals)
-        local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
-        dirs = (local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * normals[:, None])
         if self.origins == "area":
             origins = _triangle_points(self.tris[ids], np.stack([x[2] for x in samples]),
                                        np.stack([x[3] for x in samples]))
         else:
             origins = np.broadcast_to(s.centroids[ids][:, None], (k, m2, 3))
+        return self._cast(origins, normals, samples)
+
+    def point_rows(self, points: np.ndarray, normals: np.ndarray) -> list[Row]:
+        """Point-to-patch form factors from surface points (k, 3) facing ``normals`` (k, 3).
+
+        Used to gather a solved B at mesh vertices (``reconstruct``); rays are seeded by the
+        point's index, apart from the patch rows' seeds.
+        """
+        per_call = max(1, RAYS_PER_CALL // self.rays)
+        out: list[Row] = []
+        for start in range(0, len(points), per_call):
+            p, nrm = points[start:start + per_call], normals[start:start + per_call]
+            samples = [self._samples((1, start + q)) for q in range(len(p))]
+            out += self._cast(np.broadcast_to(p[:, None], (len(p), self.rays, 3)), nrm, samples)
+        return out
+
+    def _cast(self, origins: np.ndarray, normals: np.ndarray, samples) -> list[Row]:
+        """Cosine rays from ``origins`` (k, m2, 3) about ``normals`` (k, 3), as rows."""
+        s, k, m2 = self.scene, len(normals), self.rays
+        u = np.stack([x[0] for x in samples])
+        v = np.stack([x[1] for x in samples])
+        radius, phi = np.sqrt(u), 2 * np.pi * v
+        t, b = tangent_frames(normals)
+        local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
+        dirs = (local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * normals[:, None])
         origins = origins + self.epsilon * normals[:, None]
         hit = self._embree.run(origins.reshape(-1, 3).astype(np.float32), dirs.reshape(-1, 3).astype(np.float32))
         self.cast += hit.size
