@@ -163,3 +163,24 @@ def test_closed_box_reflecting_everything_is_refused(blend):
     with pytest.raises(RuntimeError, match="never decay in channel R: .*object 'box'"):
         bpy.ops.radtr.solve()
     assert snapshot(bpy) == before
+
+
+def test_ambient_term_brightens_a_partial_solve_towards_the_answer(cornell):
+    bpy = cornell
+
+    def floor_mean():
+        mesh = bpy.data.objects["floor_radtr"].data
+        c = np.empty(len(mesh.polygons) * 4, dtype=np.float32)
+        mesh.attributes["radtr_patch"].data.foreach_get("color", c)
+        return c.reshape(-1, 4)[:, :3].mean()
+
+    small(bpy, max_iterations=30, ambient=False)
+    bpy.ops.radtr.solve()
+    partial = floor_mean()
+    small(bpy, max_iterations=30, ambient=True)
+    bpy.ops.radtr.solve()
+    shown = floor_mean()
+    small(bpy, max_iterations=20_000, tolerance=1e-4, ambient=False)
+    bpy.ops.radtr.solve()
+    converged = floor_mean()
+    assert partial < converged and abs(shown - converged) < 0.5 * abs(partial - converged)

@@ -51,3 +51,21 @@ def test_bench_formfactors_quick_orders_the_settings(tmp_path):
     assert rms["hemicube 256"] < rms["hemicube 64"] / 2
     assert rms["paraboloid 256 split adaptive 0.002"] < rms["paraboloid 256 split none"] / 5
     assert rms["embree 4096 rays"] < rms["embree 256 rays"] / 2
+
+
+def test_bench_solvers_quick(tmp_path):
+    out = run("bench", "solvers", "--quick", "--json", str(tmp_path / "s.json"), cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert (tmp_path / "out" / "solvers.png").stat().st_size > 10_000
+    tables = json.loads((tmp_path / "s.json").read_text())
+    seed = tables["seed"]
+    assert {r["form_factors"] for r in seed} == {"paraboloid 128 split none", "hemicube 64", "embree 256 rays"}
+    assert all(r["rows"] <= r["shots"] and r["total_s"] > 0 for r in seed)
+    acc = {r["solver"]: r for r in tables["accuracy"]}
+    floors = [acc[m]["floor"] for m in ("shooting", "jacobi", "gauss_seidel", "direct")]
+    assert max(floors) - min(floors) < 0.01 * max(floors)       # all converge to the same patch solution
+    assert acc["cycles 64 spp"]["floor"] < acc["cycles 16 spp"]["floor"]
+    prec = {(r["solver"], r["precision"]): r["error_vs_direct"] for r in tables["precision"]}
+    assert prec[("shooting", "float64")] < 1e-6 and prec[("shooting", "float32")] < 1e-4
+    coarse, fine = tables["floor"][0], tables["floor"][1]
+    assert coarse["triangles"] < fine["triangles"] and coarse["error_vs_cycles"] > fine["error_vs_cycles"]

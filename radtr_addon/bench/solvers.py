@@ -146,6 +146,7 @@ def cycles_bakes(job, vmap: VertexMap, samples) -> dict[int, tuple[np.ndarray, f
     scene.render.engine = "CYCLES"
     cy = scene.cycles
     cy.device, cy.use_denoising, cy.seed = "CPU", False, 1
+    cy.use_adaptive_sampling = False           # every vertex gets the samples asked for
     cy.max_bounces = cy.diffuse_bounces = 64
     cy.sample_clamp_direct = cy.sample_clamp_indirect = 0.0
     targets = []
@@ -317,7 +318,7 @@ def plot(curves, cycles, path: Path, n: int, reference_spp: int):
           ylabel="relative RMS error")
     for ax in (a, b):
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

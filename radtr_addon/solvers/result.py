@@ -32,7 +32,7 @@ class SolveResult:
     escaped: np.ndarray = field(default_factory=_zeros3)
     blocked: np.ndarray = field(default_factory=_zeros3)
     unshot: np.ndarray = field(default_factory=_zeros3)
-    ambient: np.ndarray = field(default_factory=_zeros3)   # shooting's ambient radiosity estimate, W/m^2
+    ambient: np.ndarray = field(default_factory=_zeros3)   # shooting's ambient irradiance estimate, W/m^2
 
     @property
     def residual(self) -> float:
@@ -45,5 +45,5 @@ class SolveResult:
         return float(np.max(np.abs(self.emitted - books) / scale))
 
     def display(self, rho: np.ndarray) -> np.ndarray:
-        """B plus the ambient term rho x ambient (Cohen et al. 1988), for showing partial solves."""
+        """B plus the ambient term rho x ambient (after Cohen et al. 1988), for showing partial solves."""
         return self.B + rho * self.ambient

@@ -34,6 +34,7 @@ class ShootingSolver(Solver):
         self.H = np.zeros_like(self.B)
         self.escaped = np.zeros(3)
         self.blocked = np.zeros(3)
+        self.shot = np.zeros(3)                 # power shot so far, per channel
         self._area = self.area[:, None].astype(self.dtype)
         self.queue = ShooterQueue((self.dB * self._area).sum(axis=1))
         self._unshot = self._unshot_exact()
@@ -59,6 +60,7 @@ class ShootingSolver(Solver):
         queue.raise_to(j, (self.dB[j] * area[j]).sum(axis=1))
         self.escaped += row.escaped * power
         self.blocked += row.blocked * power
+        self.shot += power
         self.iterations += 1
         if self.iterations % RESYNC == 0:
             self._unshot = self._unshot_exact()
@@ -70,8 +72,16 @@ class ShootingSolver(Solver):
         return self.B, self.H, self.escaped, self.blocked, self._unshot_exact()
 
     def _ambient(self) -> np.ndarray:
-        """Cohen's ambient radiosity: unshot power per area, times 1 / (1 - mean reflectance)."""
+        """Ambient irradiance: the unshot power landing on average, over all bounces, per area.
+
+        Cohen's term is unshot / area / (1 - mean reflectance), for closed scenes. Here a
+        fraction ``stay`` of what is shot lands on a front face (1 - (escaped + blocked) / shot,
+        measured on the shots so far; 1 before any), so the light still to land is
+        unshot x stay / (1 - mean reflectance x stay): Cohen's term when nothing escapes.
+        """
         total = self.area.sum()
         mean_rho = (self.scene.rho * self.area[:, None]).sum(axis=0) / total
-        return self._unshot_exact() / total / np.maximum(1.0 - mean_rho, 1e-6)
+        lost = (self.escaped + self.blocked) / np.where(self.shot > 0, self.shot, 1.0)
+        stay = np.where(self.shot > 0, 1.0 - lost, 1.0)
+        return self._unshot_exact() * stay / total / np.maximum(1.0 - mean_rho * stay, 1e-6)
 
