@@ -232,3 +232,16 @@ def test_cancel_and_iteration_cap():
     assert (r.iterations, r.converged) == (7, False)
     assert r.residual_history[0] == pytest.approx(1.0)
     assert len(r.times) == len(r.residual_history) == 8
+
+
+@pytest.mark.parametrize("method", SOLVERS)
+def test_live_energy_readout_accounts_for_all_light(method):
+    s, F = open_scene(n=300)
+    solver = make_solver(method, s, matrix_rows(F), tol=1e-9)
+    readouts = []
+    while not solver.step(1):
+        readouts.append(solver.energy())
+    readouts.append(solver.energy())
+    for e in readouts:
+        assert sum(e.values()) == pytest.approx(1.0, abs=1e-9), (solver.phase, e)
+    assert readouts[0]["unshot"] > 0.5 and readouts[-1]["unshot"] < 1e-8
