@@ -1,23 +1,97 @@
 """Radiosity at points of the surfaces (mesh vertices) from a solved, patch-constant B.
 
-A vertex shown with the area-weighted mean of the patches around it (what ``write`` stores in
-``radtr_radiosity``) is off wherever light changes across a patch: in corners and contact
-shadows, the discretisation error that sets how exact a patch solution looks. A final gather
-removes most of it: the irradiance at the point itself, H(p) = sum_j F(p -> j) B_j, with
-point-to-patch form factors from Embree rays; the reflected exitance is rho(p) H(p).
+A vertex shown with the area-weighted mean of the patches around it (what ``write`` stores by
+default in ``radtr_radiosity``) is off wherever light changes across a patch: in corners and
+contact shadows, the discretisation error that sets how exact a patch solution looks. A final
+gather removes most of it. The irradiance at the point itself is
+
+    H(p) = sum_emitters F(p -> j) V(p, j) E_j + sum_j F(p -> j) (B_j - E_j):
+
+light straight from emitters from the closed-form point-to-triangle form factor times the
+fraction V of shadow rays to stratified points on the emitter that arrive (no noise where
+an emitter is fully seen or hidden), plus the reflected light, which varies slowly, from
+cosine-weighted Embree rays. A vertex where another surface meets lies in that surface's
+plane, where half its rays would leave through it; ``inset_points`` moves such points a
+little into their own triangles first.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .formfactors.raycast import EmbreeRays
+from .formfactors.closed_form import point_to_polygon
+from .formfactors.raycast import EmbreeRays, _triangle_points
+
+#: Shadow rays per (point, emitter patch): a 4 x 4 stratified grid on the emitter.
+SHADOW_SAMPLES = 16
+#: Fraction of the way from a vertex to the mean centroid of its triangles.
+INSET = 0.01
 
 
-def gather(scene, B: np.ndarray, points: np.ndarray, normals: np.ndarray, rays: int = 1024,
+def inset_points(points: np.ndarray, centroids: np.ndarray, fraction: float = INSET) -> np.ndarray:
+    """``points`` moved ``fraction`` of the way to ``centroids`` (the mean of their triangles')."""
+    return points + fraction * (centroids - points)
+
+
+def point_to_triangles(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Unoccluded form factors (P, J) from points facing ``normals`` to the fronts of triangles (J, 3, 3).
+
+    Lambert's contour integral, vectorised for triangles wholly in front of a point; those
+    cut by its tangent plane go through ``point_to_polygon`` (which clips), those behind or
+    facing away give 0.
+    """
+    rel = tris[None] - points[:, None, None]                          # (P, J, 3 corners, 3)
+    height = np.einsum("pjkc,pc->pjk", rel, normals)
+    tri_n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    facing = np.einsum("pjc,jc->pj", -rel[:, :, 0], tri_n) > 0         # the point sees the front
+    whole = facing & (height >= 0).all(axis=-1) & (height > 0).any(axis=-1)
+    cut = facing & ~whole & (height > 0).any(axis=-1)
+    r = rel / np.linalg.norm(rel, axis=-1, keepdims=True)
+    r2 = np.roll(r, -1, axis=2)
+    cross = np.cross(r, r2)
+    sin = np.linalg.norm(cross, axis=-1)
+    gamma = np.arctan2(sin, np.einsum("pjkc,pjkc->pjk", r, r2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        terms = np.where(sin > 0, gamma * np.einsum("pjkc,pc->pjk", cross, normals) / sin, 0.0)
+    F = np.where(whole, np.abs(terms.sum(axis=-1)) / (2 * np.pi), 0.0)
+    for p, j in zip(*np.nonzero(cut)):
+        F[p, j] = point_to_polygon(points[p], normals[p], tris[j])
+    return F
+
+
+def _visible_fraction(caster: EmbreeRays, points, pairs, targets) -> np.ndarray:
+    """Fraction of shadow rays from points[pairs[0]] to targets[pairs[1]] (J, S, 3) that arrive."""
+    p, j = pairs
+    d = targets[j] - points[p][:, None]                               # (M, S, 3)
+    dist = np.linalg.norm(d, axis=-1)
+    d = d / np.maximum(dist, 1e-300)[..., None]
+    origins = np.broadcast_to(points[p][:, None], d.shape).reshape(-1, 3)
+    blocked = caster._embree.run(origins.astype(np.float32), d.reshape(-1, 3).astype(np.float32),
+                                 dists=(dist.ravel() * (1 - 1e-5)).astype(np.float32), query="OCCLUDED")
+    return (blocked.reshape(dist.shape) < 0).mean(axis=1)
+
+
+def gather(scene, B: np.ndarray, points: np.ndarray, normals: np.ndarray, rays: int = 256,
            seed: int = 0, caster: EmbreeRays | None = None) -> np.ndarray:
-    """Irradiance (k, 3) at ``points`` facing ``normals`` from the patches of ``scene`` at radiosity B."""
+    """Irradiance (k, 3) at ``points`` facing unit ``normals`` from the patches of ``scene`` at radiosity B."""
     caster = caster or EmbreeRays(scene, rays, seed)
+    points, normals = np.asarray(points, float), np.asarray(normals, float)
+    lifted = points + caster.epsilon * normals
+    reflected = B - scene.emission
     H = np.zeros((len(points), 3))
-    for k, row in enumerate(caster.point_rows(np.asarray(points, float), np.asarray(normals, float))):
-        H[k] = row.values @ B[row.indices]
+    for k, row in enumerate(caster.point_rows(points, normals)):
+        H[k] = row.values @ reflected[row.indices]
+    emitters = np.flatnonzero(scene.emission.max(axis=1) > 0)
+    if len(emitters):
+        tris = caster.tris[emitters]
+        m = int(np.sqrt(SHADOW_SAMPLES))
+        cells = np.arange(m * m)
+        u, v = (cells // m + 0.5) / m, (cells % m + 0.5) / m
+        targets = _triangle_points(tris, np.broadcast_to(u, (len(tris), m * m)), np.broadcast_to(v, (len(tris), m * m)))
+        for start in range(0, len(points), 512):
+            block = slice(start, start + 512)
+            F = point_to_triangles(lifted[block], normals[block], tris)
+            pairs = np.nonzero(F > 0)
+            if len(pairs[0]):
+                F[pairs] *= _visible_fraction(caster, lifted[block], pairs, targets)
+            H[block] += F @ scene.emission[emitters]
     return H

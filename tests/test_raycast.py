@@ -83,3 +83,23 @@ def test_final_gather_at_a_point_matches_the_closed_form():
     H = gather(s, B, point[None], normal[None], rays=16384)
     sigma = np.sqrt(exact * (1 - exact) / 16384)
     np.testing.assert_allclose(H[0], exact * np.array([1.0, 2.0, 3.0]), atol=3 * sigma * 3)
+
+
+def test_final_gather_takes_direct_light_from_the_closed_form():
+    """An emitting square seen whole: the direct part is exact with any ray count."""
+    from geometry import squares
+
+    from radtr_addon.formfactors.closed_form import point_to_polygon
+    from radtr_addon.reconstruct import gather, point_to_triangles
+
+    s = squares()
+    s.emission[2:] = [1.0, 2.0, 3.0]
+    points = np.array([[0.5, 0.5, 0.0], [0.1, 0.8, 0.0], [2.0, 0.5, 0.3]])
+    normals = np.array([[0, 0, 1.0], [0, 0, 1.0], [-1.0, 0, 0]])
+    top = np.array([[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1.0]])
+    exact = [point_to_polygon(p, n, top) for p, n in zip(points, normals)]
+    H = gather(s, s.emission.copy(), points, normals, rays=4)
+    np.testing.assert_allclose(H, np.outer(exact, [1.0, 2.0, 3.0]), rtol=1e-5)   # points lifted 1e-6 x diagonal
+    tris = s.vertices[s.triangles]
+    np.testing.assert_allclose(point_to_triangles(points, normals, tris)[:, 2:].sum(axis=1), exact, rtol=1e-9)
+    assert np.all(point_to_triangles(points, normals, tris)[:, :2] == 0)   # the floor faces away / is coplanar

@@ -37,11 +37,7 @@ SEED_METHODS = [FormFactorSettings("paraboloid", 128, split="none"), FormFactorS
 ACCURACY_FF = FormFactorSettings("embree", rays=1024)
 CYCLES_SAMPLES = (16, 64, 256, 1024)
 REFERENCE_SAMPLES = 4096
-GATHER_RAYS = (1024, 4096)
-#: Gather points move this fraction of the way to the centroid of their triangles: a vertex
-#: where another surface meets lies in that surface's plane, and half its rays would leave
-#: through it.
-INSET = 0.01
+GATHER_RAYS = (64, 256, 1024)
 
 
 def cornell_job(target: int, settings: FormFactorSettings, solver: str = "direct"):
@@ -116,10 +112,9 @@ class VertexMap:
 
     def gathered(self, leaves, B, rays: int) -> np.ndarray:
         """Reflected radiance at the vertices by a final gather of B (``reconstruct.gather``)."""
-        from ..reconstruct import gather
+        from ..reconstruct import gather, inset_points
 
-        points = np.concatenate([pos for *_, pos in self.parts])
-        points += INSET * (self(leaves.centroids) - points)
+        points = inset_points(np.concatenate([pos for *_, pos in self.parts]), self(leaves.centroids))
         normals = self(leaves.normals)
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         return self(leaves.rho) * gather(leaves, B, points, normals, rays) / np.pi
