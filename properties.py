@@ -61,6 +61,10 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     ambient: BoolProperty(
         name="Ambient Term", default=_D.ambient,
         description="Shooting: add the light not yet shot as an even ambient term when showing a partial solve")
+    gather_rays: IntProperty(
+        name="Vertex Gather", default=_D.gather_rays, min=0, soft_max=4096,
+        description="Rays per vertex for a final gather of the solved light into the vertex colours "
+                    "(sharper corners and shadows); 0 shows the mean of the patches around each vertex")
     max_reflectance: FloatProperty(
         name="Max Reflectance", default=_D.max_reflectance, min=0.0, max=1.0,
         description="Reflectances above this are clamped, with a warning naming the material; 1 is "
@@ -78,7 +82,7 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                         method=self.method, resolution=self.resolution - self.resolution % 2,
                         rotate=self.rotate, split=self.split, split_level=self.split_level, rays=self.rays,
                         solver=self.solver, tolerance=self.tolerance, max_iterations=self.max_iterations,
-                        precision=self.precision, ambient=self.ambient,
+                        precision=self.precision, ambient=self.ambient, gather_rays=self.gather_rays,
                         max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode)
 
 

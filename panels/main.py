@@ -38,6 +38,7 @@ class RADTR_PT_main(bpy.types.Panel):
             col.prop(s, "split")
             if s.split == "uniform":
                 col.prop(s, "split_level")
+        col.prop(s, "gather_rays")
         col.prop(s, "max_reflectance")
         col.prop(s, "mode", expand=True)
         row = col.row(align=True)

@@ -70,6 +70,8 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots or sweeps")
     p.add_argument("--precision", default=d.precision, choices=("float32", "float64"), help="accumulation")
     p.add_argument("--ambient", action="store_true", help="shooting: show unshot light as an ambient term")
+    p.add_argument("--gather-rays", type=int, default=d.gather_rays,
+                   help="final gather of the vertex colours with this many rays per vertex (0: patch mean)")
     p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
     p.add_argument("--exposure", type=float, default=d.exposure)
 
@@ -80,7 +82,7 @@ def settings_from(args):
     return Settings(max_area=args.max_area, levels=args.levels, method=args.method, resolution=args.resolution,
                     rotate=args.rotate, split=args.split, split_level=args.split_level, rays=args.rays,
                     solver=args.solver, tolerance=args.tolerance, max_iterations=args.iterations,
-                    precision=args.precision, ambient=args.ambient,
+                    precision=args.precision, ambient=args.ambient, gather_rays=args.gather_rays,
                     max_reflectance=args.max_reflectance, exposure=args.exposure)
 
 

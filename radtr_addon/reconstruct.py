@@ -16,6 +16,9 @@ little into their own triangles first.
 """
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass
+
 import numpy as np
 
 from .formfactors.closed_form import point_to_polygon
@@ -25,6 +28,58 @@ from .formfactors.raycast import EmbreeRays, _triangle_points
 SHADOW_SAMPLES = 16
 #: Fraction of the way from a vertex to the mean centroid of its triangles.
 INSET = 0.01
+
+
+@dataclass
+class MeshPart:
+    """The patches of one result mesh: their ids, the scene vertices used, local triangles."""
+
+    patches: np.ndarray      # (t,) patch ids
+    vertex_ids: np.ndarray   # (v,) scene vertex ids, sorted; local vertex k is vertex_ids[k]
+    local: np.ndarray        # (t, 3) triangles in local vertex numbers
+
+
+def mesh_part(scene, patches: np.ndarray) -> MeshPart:
+    used, local = np.unique(scene.triangles[patches], return_inverse=True)
+    return MeshPart(patches, used, local.reshape(-1, 3))
+
+
+def vertex_average(tris: np.ndarray, n_vertices: int, values: np.ndarray, areas: np.ndarray):
+    """Per-vertex area-weighted mean of per-triangle ``values`` (t, c)."""
+    w = np.repeat(areas, 3)
+    idx = tris.ravel()
+    total = np.bincount(idx, weights=w, minlength=n_vertices)
+    out = np.stack([np.bincount(idx, weights=w * np.repeat(values[:, c], 3), minlength=n_vertices)
+                    for c in range(values.shape[1])], axis=1)
+    return out / np.maximum(total, 1e-300)[:, None]
+
+
+class VertexRadiosity:
+    """Radiosity at the vertices of a mesh part: the area mean of its patches (``rays`` = 0)
+    or E + rho H with H from a final ``gather`` of ``rays`` cosine rays per vertex."""
+
+    def __init__(self, scene, B: np.ndarray, rays: int = 0, seed: int = 0):
+        self.scene, self.B, self.rays = scene, B, rays
+        self.caster = EmbreeRays(scene, rays, seed) if rays > 0 else None
+        self.seconds = 0.0                       # spent gathering
+
+    def mean(self, part: MeshPart, values: np.ndarray) -> np.ndarray:
+        """Area mean at the part's vertices of per-patch ``values`` (n, c)."""
+        return vertex_average(part.local, len(part.vertex_ids), values[part.patches],
+                              self.scene.areas[part.patches])
+
+    def __call__(self, part: MeshPart) -> np.ndarray:
+        if self.caster is None:
+            return self.mean(part, self.B)
+        t0 = time.perf_counter()
+        s = self.scene
+        normals = self.mean(part, s.normals)
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+        points = inset_points(s.vertices[part.vertex_ids], self.mean(part, s.centroids))
+        H = gather(s, self.B, points, normals, caster=self.caster)
+        out = self.mean(part, s.emission) + self.mean(part, s.rho) * H
+        self.seconds += time.perf_counter() - t0
+        return out
 
 
 def inset_points(points: np.ndarray, centroids: np.ndarray, fraction: float = INSET) -> np.ndarray:

@@ -184,3 +184,59 @@ def test_ambient_term_brightens_a_partial_solve_towards_the_answer(cornell):
     bpy.ops.radtr.solve()
     converged = floor_mean()
     assert partial < converged and abs(shown - converged) < 0.5 * abs(partial - converged)
+
+
+def under_blocks(bpy, xy, margin=1e-3):
+    """Points (k, 2) within ``margin`` of the footprint of either Cornell block."""
+    from matplotlib.path import Path
+    from scipy.spatial import ConvexHull
+
+    out = np.zeros(len(xy), bool)
+    for name in ("short_block", "tall_block"):
+        obj = bpy.data.objects[name]
+        v = np.array([obj.matrix_world @ p.co for p in obj.data.vertices])[:, :2]
+        hull = Path(v[ConvexHull(v).vertices])
+        out |= hull.contains_points(xy, radius=margin) | hull.contains_points(xy, radius=-margin)
+    return out
+
+
+def test_vertex_gather_is_closer_to_cycles_than_the_patch_mean(cornell):
+    """Floor vertex colours against a Cycles bake at the same vertices: the final gather
+    (corners, contact shadows) beats the mean of the patches around each vertex."""
+    bpy = cornell
+
+    def floor_vertices():
+        mesh = bpy.data.objects["floor_radtr"].data
+        c = np.empty(len(mesh.vertices) * 4, dtype=np.float32)
+        mesh.color_attributes["radtr_radiosity"].data.foreach_get("color", c)
+        return c.reshape(-1, 4)[:, :3] / math.pi           # the floor emits nothing: reflected radiance
+
+    small(bpy, method="embree", rays=256, tolerance=1e-3)
+    bpy.ops.radtr.solve()
+    mean = floor_vertices()
+    small(bpy, method="embree", rays=256, tolerance=1e-3, gather_rays=256)
+    bpy.ops.radtr.solve()
+    gathered = floor_vertices()
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    cy = scene.cycles
+    cy.device, cy.samples, cy.use_denoising, cy.use_adaptive_sampling = "CPU", 256, False, False
+    cy.max_bounces = cy.diffuse_bounces = 64
+    floor = bpy.data.objects["floor_radtr"]
+    floor.data.materials[0] = bpy.data.objects["floor"].data.materials[0]
+    floor.data.color_attributes.active_color = floor.data.color_attributes.new("bake", "FLOAT_COLOR", "POINT")
+    floor.hide_set(False)
+    bpy.ops.object.select_all(action="DESELECT")
+    floor.select_set(True)
+    bpy.context.view_layer.objects.active = floor
+    bpy.ops.object.bake(type="DIFFUSE", pass_filter={"DIRECT", "INDIRECT", "COLOR"}, target="VERTEX_COLORS")
+    c = np.empty(len(floor.data.vertices) * 4, dtype=np.float32)
+    floor.data.color_attributes["bake"].data.foreach_get("color", c)
+    cycles = c.reshape(-1, 4)[:, :3]
+    # under the blocks Cycles' vertex bake is not the (zero) light at the point: leave those out
+    co = np.empty(len(floor.data.vertices) * 3, dtype=np.float32)
+    floor.data.vertices.foreach_get("co", co)
+    keep = ~under_blocks(bpy, co.reshape(-1, 3)[:, :2])
+    err_mean = np.sqrt(np.mean((mean - cycles)[keep] ** 2))
+    err_gather = np.sqrt(np.mean((gathered - cycles)[keep] ** 2))
+    assert err_gather < 0.7 * err_mean, (err_gather, err_mean)      # measured 0.0134 against 0.0244

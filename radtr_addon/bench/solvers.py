@@ -88,40 +88,37 @@ def seed_table(quick: bool) -> list[dict]:
 
 # -- time to accuracy --------------------------------------------------------------------------
 class VertexMap:
-    """Per-vertex area-weighted means of per-patch values, on the result meshes' vertices."""
+    """Per-vertex values on the result meshes (light excluded), concatenated in object order."""
 
     def __init__(self, job, skip=("light",)):
-        from ..blender.write import _areas
+        from ..reconstruct import mesh_part
 
         leaves = job.leaves
+        self.leaves = leaves
         self.parts = []
         for k, obj in enumerate(job.extraction.objects):
             sel = np.flatnonzero(leaves.object_index == k)
-            if obj.name in skip or not len(sel):
-                continue
-            used, local = np.unique(leaves.triangles[sel], return_inverse=True)
-            local = local.reshape(-1, 3)
-            self.parts.append((obj.name, sel, local, len(used), _areas(leaves.vertices[used], local),
-                               leaves.vertices[used]))
+            if obj.name not in skip and len(sel):
+                self.parts.append((obj.name, mesh_part(leaves, sel)))
 
     def __call__(self, values: np.ndarray) -> np.ndarray:
-        from ..blender.write import vertex_average
+        """Area means at the vertices of per-patch ``values``."""
+        from ..reconstruct import VertexRadiosity
 
-        return np.concatenate([vertex_average(local, nv, values[sel], areas)
-                               for _, sel, local, nv, areas, _ in self.parts])
+        mean = VertexRadiosity(self.leaves, values)
+        return np.concatenate([mean(part) for _, part in self.parts])
 
-    def gathered(self, leaves, B, rays: int) -> np.ndarray:
-        """Reflected radiance at the vertices by a final gather of B (``reconstruct.gather``)."""
-        from ..reconstruct import gather, inset_points
+    def gathered(self, B, rays: int) -> np.ndarray:
+        """Reflected radiance at the vertices by a final gather of B."""
+        from ..reconstruct import VertexRadiosity
 
-        points = inset_points(np.concatenate([pos for *_, pos in self.parts]), self(leaves.centroids))
-        normals = self(leaves.normals)
-        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        return self(leaves.rho) * gather(leaves, B, points, normals, rays) / np.pi
+        vertex = VertexRadiosity(self.leaves, B, rays)
+        exitance = np.concatenate([vertex(part) for _, part in self.parts])
+        return (exitance - self(self.leaves.emission)) / np.pi
 
     @property
     def positions(self) -> list[tuple[str, np.ndarray]]:
-        return [(name, pos) for name, _, _, _, _, pos in self.parts]
+        return [(name, self.leaves.vertices[part.vertex_ids]) for name, part in self.parts]
 
 
 def reflected(B, leaves) -> np.ndarray:
@@ -148,7 +145,7 @@ def cycles_bakes(job, vmap: VertexMap, samples) -> dict[int, tuple[np.ndarray, f
     for src in job.extraction.objects:
         res = bpy.data.objects[f"{src.name}_radtr"]
         res.data.materials[0] = src.data.materials[0]
-        res.select_set(src.name in [p[0] for p in vmap.parts])
+        res.select_set(src.name in [name for name, _ in vmap.parts])
         if res.select_get():
             attr = res.data.color_attributes.new("bake", "FLOAT_COLOR", "POINT")
             res.data.color_attributes.active_color = attr
@@ -214,7 +211,7 @@ def accuracy(quick: bool, out_dir: Path):
     direct = curves[SOLVERS.index("direct")]
     for rays in GATHER_RAYS:
         t0 = time.perf_counter()
-        values = vmap.gathered(leaves, exact, rays)
+        values = vmap.gathered(exact, rays)
         error = rel_rms(values, reference)
         seconds = direct["seconds"][-1] + time.perf_counter() - t0
         curves.append({"solver": f"direct + vertex gather {rays}", "seconds": [seconds],

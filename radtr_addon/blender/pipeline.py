@@ -16,6 +16,7 @@ import numpy as np
 
 from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
+from ..reconstruct import VertexRadiosity
 from ..solvers import make_solver
 from .extract import extract, source_objects
 from .write import write_results
@@ -41,6 +42,7 @@ class Settings:
     max_iterations: int = 20_000   # shots or sweeps
     precision: str = "float64"     # accumulation: float32 | float64
     ambient: bool = False          # shooting: show unshot light as Cohen's ambient term
+    gather_rays: int = 0           # vertex radiosity by a final gather of this many rays (0: patch mean)
     max_reflectance: float = 0.95
     exposure: float = 1.0
     mode: str = "COPY"             # or "REPLACE"
@@ -144,9 +146,13 @@ class SolveJob:
         self.stats.seconds["form_factors"] = r.seconds["form_factors"]
         self.stats.seconds["solve"] = r.seconds["solve"]
         B = r.display(self.leaves.rho) if self.settings.ambient else r.B
+        vertices = VertexRadiosity(self.leaves, B, self.settings.gather_rays)
         with self._stage("write"):
             objects = write_results(self.bl_scene, self.extraction, self.leaves, B,
-                                    self.settings.exposure, self.settings.mode)
+                                    self.settings.exposure, self.settings.mode, vertices)
+        if self.settings.gather_rays:
+            self.stats.seconds["vertex_gather"] = vertices.seconds
+            self.stats.seconds["write"] -= vertices.seconds
         self.log(f"RadTR: {self.summary()}")
         return objects
 

@@ -2,7 +2,8 @@
 
 Attributes on every result mesh (B in W/m^2, alpha 1):
 - ``radtr_patch`` (FACE, FLOAT_COLOR): each patch's radiosity as solved;
-- ``radtr_radiosity`` (POINT, FLOAT_COLOR): area-weighted mean of the patches around a vertex;
+- ``radtr_radiosity`` (POINT, FLOAT_COLOR): radiosity at each vertex, the area-weighted mean of
+  the patches around it or, with Vertex Gather rays > 0, a final gather (``reconstruct``);
 - ``radtr_patch_index`` (FACE, INT): the patch's index in the solve.
 
 ``mode='COPY'`` puts subdivided copies in the "RadTR" collection and hides the sources;
@@ -16,23 +17,22 @@ import math
 
 import numpy as np
 
+from ..reconstruct import MeshPart, VertexRadiosity, mesh_part
 from .extract import HIDDEN_SOURCE, RESULT_COLLECTION, bpy_collection
 
 DISPLAY_MATERIAL = "RadTR Radiosity"
 EMISSION_NODE = "RadTR Emission"
 
 
-def build_mesh(name: str, vertices: np.ndarray, triangles: np.ndarray, B: np.ndarray,
-               patch_ids: np.ndarray):
-    """A new mesh datablock of the triangles given, with RadTR's attributes."""
+def build_mesh(name: str, vertices: np.ndarray, part: MeshPart, B: np.ndarray, point: np.ndarray):
+    """A new mesh datablock of ``part``'s triangles, with patch radiosity ``B`` (t, 3) and
+    vertex radiosity ``point`` (v, 3) as RadTR's attributes."""
     import bpy
 
-    used, local = np.unique(triangles, return_inverse=True)
-    local = local.reshape(-1, 3)
-    verts = vertices[used]
+    local = part.local
     mesh = bpy.data.meshes.new(name)
-    mesh.vertices.add(len(verts))
-    mesh.vertices.foreach_set("co", verts.astype(np.float32).ravel())
+    mesh.vertices.add(len(part.vertex_ids))
+    mesh.vertices.foreach_set("co", vertices[part.vertex_ids].astype(np.float32).ravel())
     mesh.loops.add(local.size)
     mesh.loops.foreach_set("vertex_index", local.astype(np.int32).ravel())
     mesh.polygons.add(len(local))
@@ -41,29 +41,13 @@ def build_mesh(name: str, vertices: np.ndarray, triangles: np.ndarray, B: np.nda
     rgba = np.column_stack([B, np.ones(len(B))]).astype(np.float32)
     mesh.attributes.new("radtr_patch", "FLOAT_COLOR", "FACE").data.foreach_set("color", rgba.ravel())
     mesh.attributes.new("radtr_patch_index", "INT", "FACE").data.foreach_set(
-        "value", patch_ids.astype(np.int32))
-    point = vertex_average(local, len(verts), B, _areas(verts, local))
+        "value", part.patches.astype(np.int32))
     prgba = np.column_stack([point, np.ones(len(point))]).astype(np.float32)
     attr = mesh.color_attributes.new("radtr_radiosity", "FLOAT_COLOR", "POINT")
     attr.data.foreach_set("color", prgba.ravel())
     mesh.color_attributes.active_color = attr
     mesh.color_attributes.render_color_index = mesh.color_attributes.active_color_index
     return mesh
-
-
-def _areas(verts, tris):
-    a, b, c = (verts[tris[:, k]] for k in range(3))
-    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-
-
-def vertex_average(tris: np.ndarray, n_vertices: int, values: np.ndarray, areas: np.ndarray):
-    """Per-vertex area-weighted mean of per-triangle ``values`` (t, c)."""
-    w = np.repeat(areas, 3)
-    idx = tris.ravel()
-    total = np.bincount(idx, weights=w, minlength=n_vertices)
-    out = np.stack([np.bincount(idx, weights=w * np.repeat(values[:, c], 3), minlength=n_vertices)
-                    for c in range(values.shape[1])], axis=1)
-    return out / np.maximum(total, 1e-300)[:, None]
 
 
 def display_material(exposure: float = 1.0):
@@ -99,17 +83,22 @@ def set_exposure(exposure: float):
         mat.node_tree.nodes[EMISSION_NODE].inputs["Strength"].default_value = exposure / math.pi
 
 
-def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY") -> list:
-    """Write radiosity ``B`` of ``leaves`` (a PatchScene) onto the extraction's objects."""
+def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", vertex_values=None) -> list:
+    """Write radiosity ``B`` of ``leaves`` (a PatchScene) onto the extraction's objects.
+
+    ``vertex_values(part)`` gives the vertex radiosity (default: the area mean of the patches).
+    """
     import bpy
 
+    vertex_values = vertex_values or VertexRadiosity(leaves, B)
     meshes = []
     try:
         for k, obj in enumerate(extraction.objects):
             sel = np.flatnonzero(leaves.object_index == k)
             if len(sel) == 0:
                 continue
-            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, leaves.triangles[sel], B[sel], sel)
+            part = mesh_part(leaves, sel)
+            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, part, B[sel], vertex_values(part))
             meshes.append((obj, mesh))
         material = display_material(exposure) if mode == "COPY" else None
     except Exception:
