@@ -1,0 +1,101 @@
+"""Per-frame back-ends: B = E + rho * (U Z), the n x k by k x channels product, on some device.
+
+A back-end is a class taking a ``LowRank`` (and a dtype) whose ``solve(E)`` returns B.
+The small k-sized part (V^T E and the LU solves) stays on the CPU in every back-end; what
+differs is where U lives and who multiplies it. ``register(name, cls)`` adds one (the seed's
+MATLAB slot): ``BACKENDS`` is what the bench and the flashlight offer.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import SettingsError
+
+BACKENDS: dict[str, type] = {}
+
+
+def register(name: str, cls: type):
+    BACKENDS[name] = cls
+
+
+def make_backend(name: str, lowrank, dtype=np.float32):
+    if name not in BACKENDS:
+        raise SettingsError(f"low-rank back-end must be one of {', '.join(BACKENDS)}, got '{name}'")
+    return BACKENDS[name](lowrank, dtype)
+
+
+class NumpyBackend:
+    """U in host memory, one BLAS GEMM per frame (numpy's, multithreaded)."""
+
+    def __init__(self, lowrank, dtype=np.float32):
+        self.lowrank, self.dtype = lowrank, np.dtype(dtype)
+        self.U = np.ascontiguousarray(lowrank.U, dtype=self.dtype)
+        self.rho = lowrank.rho.astype(self.dtype)
+        self.seconds = {"coefficients": 0.0, "product": 0.0}
+
+    def solve(self, E: np.ndarray) -> np.ndarray:
+        t0 = time.perf_counter()
+        Z = self.lowrank.coefficients(E).astype(self.dtype)
+        t1 = time.perf_counter()
+        B = E + self.rho * (self.U @ Z)
+        self.seconds["coefficients"] += t1 - t0
+        self.seconds["product"] += time.perf_counter() - t1
+        return B
+
+
+_KERNEL = """
+__kernel void product(__global const REAL *U, __global const REAL *Z, __global const REAL *E,
+                      __global const REAL *rho, __global REAL *B, const int k, const int c) {
+    int i = get_global_id(0);
+    __global const REAL *u = U + (size_t)i * k;
+    for (int ch = 0; ch < c; ++ch) {
+        REAL s = 0;
+        for (int g = 0; g < k; ++g) s += u[g] * Z[g * c + ch];
+        B[i * c + ch] = E[i * c + ch] + rho[i * c + ch] * s;
+    }
+}
+"""
+
+
+class OpenCLBackend:
+    """U in an OpenCL device's memory (PoCL on the CPU here, a GPU where present); one kernel
+    per frame, one work-item per patch."""
+
+    def __init__(self, lowrank, dtype=np.float32):
+        import pyopencl as cl
+
+        self.cl, self.lowrank, self.dtype = cl, lowrank, np.dtype(dtype)
+        self.ctx = cl.create_some_context(interactive=False)
+        self.queue = cl.CommandQueue(self.ctx)
+        real = "float" if self.dtype == np.float32 else "double"
+        self.program = cl.Program(self.ctx, _KERNEL.replace("REAL", real)).build()
+        mf = cl.mem_flags
+        U = np.ascontiguousarray(lowrank.U, dtype=self.dtype)
+        self.U = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=U)
+        self.rho = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=np.ascontiguousarray(lowrank.rho, dtype=self.dtype))
+        self.out = np.empty(lowrank.rho.shape, dtype=self.dtype)
+        self.B = cl.Buffer(self.ctx, mf.WRITE_ONLY, self.out.nbytes)
+        self.seconds = {"coefficients": 0.0, "product": 0.0}
+        self.device = self.ctx.devices[0].name
+
+    def solve(self, E: np.ndarray) -> np.ndarray:
+        cl = self.cl
+        t0 = time.perf_counter()
+        Z = np.ascontiguousarray(self.lowrank.coefficients(E), dtype=self.dtype)
+        t1 = time.perf_counter()
+        mf = cl.mem_flags
+        z = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=Z)
+        e = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(E, dtype=self.dtype))
+        self.program.product(self.queue, (self.lowrank.n,), None, self.U, z, e, self.rho, self.B,
+                             np.int32(self.lowrank.k), np.int32(self.lowrank.channels))
+        cl.enqueue_copy(self.queue, self.out, self.B)
+        self.seconds["coefficients"] += t1 - t0
+        self.seconds["product"] += time.perf_counter() - t1
+        return self.out.copy()
+
+
+register("numpy", NumpyBackend)
+register("opencl", OpenCLBackend)
