@@ -65,6 +65,14 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Vertex Gather", default=_D.gather_rays, min=0, soft_max=4096,
         description="Rays per vertex for a final gather of the solved light into the vertex colours "
                     "(sharper corners and shadows); 0 shows the mean of the patches around each vertex")
+    lowrank_level: IntProperty(
+        name="Low-Rank Level", default=1, min=0, max=12,
+        description="Hierarchy level whose nodes are the flashlight's clusters: finer is more exact, "
+                    "slower to precompute and to update (solve with Levels above it)")
+    lowrank_backend: EnumProperty(
+        name="Back-End", default="numpy",
+        items=[("numpy", "NumPy", "BLAS product on the CPU"),
+               ("opencl", "OpenCL", "PyOpenCL: a GPU where present, PoCL on the CPU otherwise")])
     max_reflectance: FloatProperty(
         name="Max Reflectance", default=_D.max_reflectance, min=0.0, max=1.0,
         description="Reflectances above this are clamped, with a warning naming the material; 1 is "

@@ -54,5 +54,10 @@ class RADTR_PT_main(bpy.types.Panel):
             box.label(text=f"Absorbed {e['absorbed']:.1%}, escaped {e['escaped'] + e['blocked']:.1%}, "
                            f"unshot {e['unshot']:.1%}")
         col.separator()
+        col.label(text="Flashlight")
+        col.prop(s, "lowrank_level")
+        col.prop(s, "lowrank_backend")
+        col.operator("radtr.flashlight", icon="LIGHT_SPOT")
+        col.separator()
         col.prop(s, "exposure")
         col.operator("radtr.clear", icon="TRASH")

@@ -93,6 +93,7 @@ class SolveJob:
             self.solver = make_solver(settings.solver, self.leaves, self.rows, tol=settings.tolerance,
                                       max_iterations=settings.max_iterations, dtype=settings.precision)
         self.result = None
+        self.objects = []                       # the result objects, once written
 
     @contextmanager
     def _stage(self, name):
@@ -148,8 +149,8 @@ class SolveJob:
         B = r.display(self.leaves.rho) if self.settings.ambient else r.B
         vertices = VertexRadiosity(self.leaves, B, self.settings.gather_rays)
         with self._stage("write"):
-            objects = write_results(self.bl_scene, self.extraction, self.leaves, B,
-                                    self.settings.exposure, self.settings.mode, vertices)
+            self.objects = objects = write_results(self.bl_scene, self.extraction, self.leaves, B,
+                                                   self.settings.exposure, self.settings.mode, vertices)
         if self.settings.gather_rays:
             self.stats.seconds["vertex_gather"] = vertices.seconds
             self.stats.seconds["write"] -= vertices.seconds

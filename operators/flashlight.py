@@ -1,0 +1,53 @@
+"""Flashlight: a spot at the viewport's eye, aimed through the mouse, relit every frame by
+the low-rank solve of the last Solve. The event handling lives in ``FlashlightSession``."""
+import bpy
+
+from ..radtr_addon.blender.flashlight import FlashlightSession, default_spot, flashlight_for
+from ..radtr_addon.errors import RadTRError
+from .solve import running
+
+
+def _mouse_ray(context, event):
+    from bpy_extras import view3d_utils
+
+    region, rv3d = context.region, context.region_data
+    xy = (event.mouse_region_x, event.mouse_region_y)
+    return (view3d_utils.region_2d_to_origin_3d(region, rv3d, xy),
+            view3d_utils.region_2d_to_vector_3d(region, rv3d, xy))
+
+
+class RADTR_OT_flashlight(bpy.types.Operator):
+    """Relight the solved scene in real time with a flashlight at the eye, aimed by the mouse"""
+
+    bl_idname = "radtr.flashlight"
+    bl_label = "Flashlight"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        job = running["last"]
+        return (running["job"] is None and job is not None and bool(job.objects)
+                and context.area is not None and context.area.type == "VIEW_3D")
+
+    def invoke(self, context, event):
+        s = context.scene.radtr
+        try:
+            light, meshes, warnings, hit = flashlight_for(running["last"], s.lowrank_level, s.lowrank_backend)
+        except RadTRError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        for w in warnings:
+            self.report({"WARNING"}, w)
+        self.report({"INFO"}, f"RadTR: low-rank factors {'read from the cache' if hit else 'built'}")
+        origin, direction = _mouse_ray(context, event)
+        self.session = FlashlightSession(light, meshes, default_spot(light.scene, origin, direction))
+        self.session.update()
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        ray = _mouse_ray(context, event) if event.type == "MOUSEMOVE" else None
+        result = self.session.handle(event.type, event.value, ray)
+        context.area.header_text_set(self.session.header if result == {"RUNNING_MODAL"} else None)
+        context.area.tag_redraw()
+        return result

@@ -1,0 +1,173 @@
+"""The flashlight in Blender: result meshes rewritten in place, and the event handling.
+
+``LiveMeshes`` writes a B into the result meshes' ``radtr_patch`` and ``radtr_radiosity``
+attributes with ``foreach_set`` (no new datablocks), and can snapshot and restore them byte
+for byte. ``FlashlightSession`` holds what the modal operator does with each event, free of
+windows, so it runs headless from synthetic events too; ``render_poses`` is the batch use.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+
+import numpy as np
+
+from ..lowrank.flashlight import Spot
+from ..reconstruct import VertexRadiosity, mesh_part
+
+
+class LiveMeshes:
+    """The result meshes of a solve (``SolveJob.objects``), written every frame."""
+
+    def __init__(self, objects, leaves):
+        self.leaves = leaves
+        self.parts = []
+        for obj in objects:
+            mesh = obj.data
+            ids = np.empty(len(mesh.polygons), dtype=np.int32)
+            mesh.attributes["radtr_patch_index"].data.foreach_get("value", ids)
+            self.parts.append((mesh, mesh_part(leaves, ids.astype(np.int64))))
+
+    def _attrs(self, mesh):
+        return mesh.attributes["radtr_patch"], mesh.color_attributes["radtr_radiosity"]
+
+    def snapshot(self) -> list:
+        out = []
+        for mesh, _ in self.parts:
+            pair = []
+            for attr in self._attrs(mesh):
+                buf = np.empty(len(attr.data) * 4, dtype=np.float32)
+                attr.data.foreach_get("color", buf)
+                pair.append(buf)
+            out.append(pair)
+        return out
+
+    def restore(self, snapshot: list):
+        for (mesh, _), pair in zip(self.parts, snapshot):
+            for attr, buf in zip(self._attrs(mesh), pair):
+                attr.data.foreach_set("color", buf)
+            mesh.update()
+
+    def write(self, B: np.ndarray):
+        vertex = VertexRadiosity(self.leaves, B)
+        for mesh, part in self.parts:
+            patch, point = self._attrs(mesh)
+            for attr, values in ((patch, B[part.patches]), (point, vertex(part))):
+                rgba = np.ones((len(values), 4), dtype=np.float32)
+                rgba[:, :3] = values
+                attr.data.foreach_set("color", rgba.ravel())
+            mesh.update()
+
+
+class FlashlightSession:
+    """What the flashlight does with each event. ``handle`` returns the modal result:
+    mouse aims (``ray`` = (origin, direction)), +/- size, wheel intensity, C colour/mono,
+    left click keeps the light, Esc or right click restores the colours as they were."""
+
+    GROW = 1.2
+
+    def __init__(self, flashlight, meshes: LiveMeshes, spot: Spot):
+        self.flashlight, self.meshes, self.spot = flashlight, meshes, spot
+        self.saved = meshes.snapshot()
+        self.stages: dict[str, float] = {}
+        self._frames: deque = deque(maxlen=30)
+
+    @property
+    def updates_per_second(self) -> float:
+        if len(self._frames) < 2:
+            return 0.0
+        return (len(self._frames) - 1) / max(self._frames[-1] - self._frames[0], 1e-9)
+
+    @property
+    def header(self) -> str:
+        ms = ", ".join(f"{k} {v * 1e3:.1f} ms" for k, v in self.stages.items())
+        return (f"RadTR flashlight: {self.updates_per_second:.0f} updates/s ({ms}); "
+                f"size {np.degrees(self.spot.angle):.0f} deg (+/-), intensity {self.spot.intensity:.3g} (wheel), "
+                f"{'mono' if self.flashlight.mono else 'colour'} (C); click keeps, Esc restores")
+
+    def update(self):
+        B, stages = self.flashlight.frame(self.spot)
+        t0 = time.perf_counter()
+        self.meshes.write(B)
+        self.stages = {**stages, "write": time.perf_counter() - t0}
+        self._frames.append(time.perf_counter())
+
+    def handle(self, event_type: str, value: str = "PRESS", ray=None) -> set:
+        if event_type == "MOUSEMOVE" and ray is not None:
+            self.spot.position, self.spot.direction = np.asarray(ray[0], float), np.asarray(ray[1], float)
+        elif value != "PRESS" and event_type not in ("WHEELUPMOUSE", "WHEELDOWNMOUSE"):
+            return {"RUNNING_MODAL"}
+        elif event_type in ("NUMPAD_PLUS", "PLUS", "EQUAL"):
+            self.spot.angle = min(self.spot.angle * self.GROW, np.radians(89.0))
+        elif event_type in ("NUMPAD_MINUS", "MINUS"):
+            self.spot.angle = max(self.spot.angle / self.GROW, np.radians(0.5))
+        elif event_type == "WHEELUPMOUSE":
+            self.spot.intensity *= 1.25
+        elif event_type == "WHEELDOWNMOUSE":
+            self.spot.intensity /= 1.25
+        elif event_type == "C":
+            self.flashlight.set_mono(not self.flashlight.mono)
+        elif event_type == "LEFTMOUSE":
+            return {"FINISHED"}
+        elif event_type in ("ESC", "RIGHTMOUSE"):
+            self.meshes.restore(self.saved)
+            return {"CANCELLED"}
+        else:
+            return {"PASS_THROUGH"}
+        self.update()
+        return {"RUNNING_MODAL"}
+
+
+def default_spot(scene, position, direction) -> Spot:
+    """A spot whose light on the scene is of the order of the scene's own emitters."""
+    power = float(scene.emitted_power().max())
+    return Spot(np.asarray(position, float), np.asarray(direction, float), intensity=max(power, 1e-9) / np.pi)
+
+
+def render_poses(bl_scene, flashlight, meshes: LiveMeshes, spots, out_dir) -> list:
+    """Batch use: one PNG per spot (``flashlight_000.png`` ...); the colours are restored after."""
+    from pathlib import Path
+
+    from .render import render_png
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    saved = meshes.snapshot()
+    paths = []
+    try:
+        for k, spot in enumerate(spots):
+            B, _ = flashlight.frame(spot)
+            meshes.write(B)
+            paths.append(out_dir / f"flashlight_{k:03d}.png")
+            render_png(bl_scene, str(paths[-1].resolve()))
+    finally:
+        meshes.restore(saved)
+    return paths
+
+
+def cache_folder():
+    """Where low-rank factors are kept: the extension's user folder, else Blender's temp folder."""
+    from pathlib import Path
+
+    import bpy
+
+    try:
+        return Path(bpy.utils.extension_path_user(__package__.split(".")[0], path="lowrank", create=True))
+    except (ValueError, KeyError, AttributeError):     # not running as an installed extension
+        return Path(bpy.app.tempdir or "/tmp") / "radtr_lowrank"
+
+
+def flashlight_for(job, level: int, backend: str = "numpy", folder=None):
+    """A Flashlight over a finished SolveJob: low-rank factors of ``level`` (cached), and the
+    meshes to write to. Returns (flashlight, meshes, warnings, read_from_cache)."""
+    from ..errors import SceneError
+    from ..lowrank.cache import cached_build
+    from ..lowrank.flashlight import Flashlight
+
+    if not job.objects:
+        raise SceneError("solve the scene first: the flashlight relights its result meshes")
+    warnings: list[str] = []
+    level = min(level, job.hierarchy.levels)
+    lowrank, hit = cached_build(job.hierarchy, job.rows, level, folder or cache_folder(),
+                                ff_label=job.rows.settings.label(), warnings=warnings)
+    return Flashlight(job.leaves, lowrank, backend), LiveMeshes(job.objects, job.leaves), warnings, hit

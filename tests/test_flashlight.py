@@ -1,0 +1,90 @@
+"""The low-rank solve and the flashlight on the solved Cornell box: error per level against
+the direct solve, the modal handlers driven by synthetic events, and batch pictures."""
+import numpy as np
+import pytest
+
+from radtr_addon.bench.skeleton import max_area_for
+from radtr_addon.blender.flashlight import FlashlightSession, default_spot, flashlight_for, render_poses
+from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.lowrank import build
+
+
+@pytest.fixture(scope="module")
+def solved(addon):
+    """The Cornell box solved directly at about 3,900 patches in a 4-level hierarchy (one file
+    for the module: no test here opens another)."""
+    import bpy
+
+    from radtr_addon.blender.extract import extract, source_objects
+    from radtr_addon.cli import load_bundled
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    load_bundled("cornell_box").build(bpy)
+    ctx = bpy.context
+    base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
+    settings = Settings(max_area=max_area_for(base.areas, 3584, 4), levels=4, method="embree", rays=1024,
+                        solver="direct")
+    return solve(ctx, settings, log=lambda *_: None)
+
+
+def test_lowrank_error_per_level_on_the_cornell_box(solved):
+    job = solved
+    direct = job.result.B
+    errors = {}
+    for level in range(1, job.hierarchy.levels):             # the leaf level is exact: test_lowrank
+        lr = build(job.hierarchy, job.rows, level)
+        B = lr.solve(job.leaves.emission)
+        errors[(level, lr.k)] = float(np.sqrt(np.mean((B - direct) ** 2) / np.mean(direct ** 2)))
+    print("low-rank RMS error against direct, (level, clusters):", errors)
+    assert any(0 < e < 0.02 for (level, k), e in errors.items() if k < job.leaves.n / 2)
+
+
+def colours(meshes):
+    return [b.copy() for pair in meshes.snapshot() for b in pair]
+
+
+def test_modal_handlers_change_the_light_and_escape_restores_bytes(solved, tmp_path):
+    job = solved
+    light, meshes, warnings, hit = flashlight_for(job, 2, folder=tmp_path)
+    assert not hit and not warnings
+    before = colours(meshes)
+    eye = np.array([0.278, -0.8, 0.273])                       # the Cornell camera
+    session = FlashlightSession(light, meshes, default_spot(job.leaves, eye, [0, 1, 0]))
+    assert session.handle("MOUSEMOVE", "NOTHING", (eye, np.array([0.0, 1.0, -0.3]))) == {"RUNNING_MODAL"}
+    lit = colours(meshes)
+    assert any(not np.array_equal(a, b) for a, b in zip(lit, before))
+    angle, intensity = session.spot.angle, session.spot.intensity
+    session.handle("NUMPAD_PLUS")
+    assert session.spot.angle == pytest.approx(angle * 1.2)
+    session.handle("MINUS")
+    session.handle("MINUS")
+    assert session.spot.angle < angle
+    session.handle("WHEELUPMOUSE")
+    assert session.spot.intensity == pytest.approx(intensity * 1.25)
+    session.handle("C")
+    grey = np.asarray(meshes.snapshot()[0][0]).reshape(-1, 4)
+    assert light.mono and np.allclose(grey[:, 0], grey[:, 1]) and np.allclose(grey[:, 1], grey[:, 2])
+    assert session.handle("C", "RELEASE") == {"RUNNING_MODAL"} and light.mono     # releases do nothing
+    assert session.handle("K") == {"PASS_THROUGH"}
+    assert "updates/s" in session.header and "visibility" in session.header
+    assert session.handle("ESC") == {"CANCELLED"}
+    assert all(np.array_equal(a, b) for a, b in zip(colours(meshes), before))  # byte for byte
+    # a second session from the cache; left click keeps its light
+    light2, meshes2, _, hit = flashlight_for(job, 2, folder=tmp_path)
+    assert hit
+    kept = FlashlightSession(light2, meshes2, default_spot(job.leaves, eye, [0, 1, -0.3]))
+    kept.update()
+    assert kept.handle("LEFTMOUSE") == {"FINISHED"}
+    assert any(not np.array_equal(a, b) for a, b in zip(colours(meshes2), before))
+
+
+def test_batch_poses_render_one_png_each(solved, tmp_path):
+    job = solved
+    light, meshes, _, _ = flashlight_for(job, 2, folder=tmp_path / "cache")
+    before = colours(meshes)
+    eye = np.array([0.278, -0.8, 0.273])
+    spots = [default_spot(job.leaves, eye, d) for d in ([0, 1, 0], [0.3, 1, -0.2])]
+    paths = render_poses(job.bl_scene, light, meshes, spots, tmp_path / "frames")
+    assert [p.name for p in paths] == ["flashlight_000.png", "flashlight_001.png"]
+    assert all(p.stat().st_size > 1000 for p in paths)
+    assert all(np.array_equal(a, b) for a, b in zip(colours(meshes), before))
