@@ -70,7 +70,7 @@ class OpenCLBackend:
         self.ctx = cl.create_some_context(interactive=False)
         self.queue = cl.CommandQueue(self.ctx)
         real = "float" if self.dtype == np.float32 else "double"
-        self.program = cl.Program(self.ctx, _KERNEL.replace("REAL", real)).build()
+        self.kernel = cl.Kernel(cl.Program(self.ctx, _KERNEL.replace("REAL", real)).build(), "product")
         mf = cl.mem_flags
         U = np.ascontiguousarray(lowrank.U, dtype=self.dtype)
         self.U = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=U)
@@ -89,8 +89,8 @@ class OpenCLBackend:
         mf = cl.mem_flags
         z = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=Z)
         e = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(E, dtype=self.dtype))
-        self.program.product(self.queue, (self.lowrank.n,), None, self.U, z, e, self.rho, self.B,
-                             np.int32(self.lowrank.k), np.int32(self.lowrank.channels))
+        self.kernel(self.queue, (self.lowrank.n,), None, self.U, z, e, self.rho, self.B,
+                    np.int32(self.lowrank.k), np.int32(self.lowrank.channels))
         cl.enqueue_copy(self.queue, self.out, self.B)
         self.seconds["coefficients"] += t1 - t0
         self.seconds["product"] += time.perf_counter() - t1

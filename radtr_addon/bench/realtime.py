@@ -1,0 +1,117 @@
+"""``bench realtime``: low-rank precompute and flashlight frames on the Cornell box.
+
+For about 3,584 / 10,000 / 50,000 / 100,000 patches (``--quick``: 896 / 3,584) in a 3-level
+hierarchy, the level whose cluster count is nearest ``CLUSTERS`` (k) is factored from Embree
+rows (256 rays). Table ``precompute``: seconds by stage (hierarchy, form factors of the k
+representatives, U, LU) and the memory of U, next to the seed's set-up (Tables 7 and 10).
+Table ``frames``: per back-end, colour and mono, ms per frame by stage (visibility of the
+spot, the k-sized coefficients, the n x k product, write-back into the Blender meshes) and
+updates per second, over ``FRAMES`` spot poses; ``bound_ms`` is the time a memory-bound
+product would need: U's bytes over the read bandwidth of a numpy copy of the same size,
+measured in the same run.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..lowrank import build
+from ..lowrank.backends import BACKENDS
+from ..lowrank.flashlight import Flashlight, Spot
+
+SIZES = (3584, 10000, 50000, 100000)
+CLUSTERS = 1024
+FRAMES = 20
+EYE = np.array([0.278, -0.8, 0.273])
+#: The seed's real-time set-up and frame rates (Tables 7 and 10; CPU / GPU).
+SEED = {3584: "set-up 50.5 s; colour 75 / 115 FPS, mono 115 / 140",
+        9696: "set-up 940 / 422 s; colour 4 / 29 FPS, mono 10 / 58 (LivingLiteColor)"}
+
+
+def spots(count: int) -> list[Spot]:
+    """Spot poses sweeping the box from the camera position."""
+    angles = np.linspace(-0.4, 0.4, count)
+    return [Spot(EYE, np.array([np.sin(a), 1.0, -0.3 * np.cos(3 * a)]), np.radians(20.0), 0.05)
+            for a in angles]
+
+
+def job_for(target: int, levels: int = 3):
+    """A SolveJob (not solved) of the Cornell box at about ``target`` patches, with result meshes."""
+    import bpy
+
+    from ..blender.extract import extract, source_objects
+    from ..blender.pipeline import Settings, SolveJob
+    from ..blender.write import write_results
+    from ..cli import load_bundled
+    from .skeleton import max_area_for
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    load_bundled("cornell_box").build(bpy)
+    ctx = bpy.context
+    base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
+    settings = Settings(max_area=max_area_for(base.areas, target, levels), levels=levels, method="embree",
+                        rays=256, cache_mb=8192)
+    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings, log=lambda *_: None)
+    job.objects = write_results(ctx.scene, job.extraction, job.leaves, job.leaves.emission)
+    return job
+
+
+def read_bound_ms(U: np.ndarray) -> float:
+    """ms to read U once at the bandwidth a numpy copy of it reaches (best of 3)."""
+    dst = np.empty_like(U)
+    best = np.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        np.copyto(dst, U)
+        best = min(best, time.perf_counter() - t0)
+    return 1e3 * best / 2                          # a copy reads and writes the same bytes
+
+
+def frames(job, lowrank, backend: str, mono: bool) -> dict:
+    from ..blender.flashlight import LiveMeshes
+
+    light = Flashlight(job.leaves, lowrank, backend)
+    light.set_mono(mono)
+    meshes = LiveMeshes(job.objects, job.leaves)
+    poses = spots(FRAMES)
+    light.frame(poses[0])                          # warm-up (kernel build, first allocation)
+    stages = {"visibility": 0.0, "coefficients": 0.0, "product": 0.0, "write": 0.0}
+    light.backend.seconds = {"coefficients": 0.0, "product": 0.0}
+    t_all = time.perf_counter()
+    for spot in poses:
+        B, s = light.frame(spot)
+        stages["visibility"] += s["visibility"]
+        t0 = time.perf_counter()
+        meshes.write(B)
+        stages["write"] += time.perf_counter() - t0
+    total = time.perf_counter() - t_all
+    stages.update(light.backend.seconds)
+    row = {f"{k}_ms": round(1e3 * v / FRAMES, 2) for k, v in stages.items()}
+    return {"backend": backend, "mode": "mono" if mono else "colour", **row,
+            "updates_s": round(FRAMES / total, 1)}
+
+
+def run(quick: bool = False) -> dict[str, list[dict]]:
+    pre, per_frame = [], []
+    for target in ((896, 3584) if quick else SIZES):
+        t0 = time.perf_counter()
+        job = job_for(target)
+        setup = time.perf_counter() - t0
+        ks = [len(r) for r in job.hierarchy.representative]
+        level = int(np.argmin([abs(k - min(CLUSTERS, job.leaves.n // 4)) for k in ks]))
+        lowrank = build(job.hierarchy, job.rows, level, dtype=np.float32, budget_bytes=16 << 30)
+        s = lowrank.seconds
+        pre.append({"patches": job.leaves.n, "level": level, "clusters": lowrank.k,
+                    "hierarchy_s": round(job.stats.seconds["subdivide"], 2),
+                    "form_factors_s": round(s["form_factors"], 2), "U_s": round(s["U"] + s["V"], 2),
+                    "factor_s": round(s["factor"], 2),
+                    "total_s": round(sum(s.values()) + job.stats.seconds["subdivide"], 2),
+                    "U_MB": round(lowrank.U.nbytes / 2**20, 1), "scene_setup_s": round(setup, 2),
+                    "seed": SEED.get(target, "")})
+        bound = read_bound_ms(lowrank.U)
+        for backend in BACKENDS:
+            for mono in (False, True):
+                per_frame.append({"patches": job.leaves.n, "clusters": lowrank.k,
+                                  **frames(job, lowrank, backend, mono), "bound_ms": round(bound, 2)})
+    return {"precompute": pre, "frames": per_frame}
