@@ -106,6 +106,50 @@ def cmd_solve(args) -> int:
     return 0
 
 
+def read_spots(path: str, scene) -> list:
+    """Spot poses from a JSON list of {position, direction, angle_deg, intensity, color}."""
+    import json
+
+    import numpy as np
+
+    from .blender.flashlight import default_spot
+
+    try:
+        poses = json.loads(Path(path).read_text())
+        spots = []
+        for k, pose in enumerate(poses):
+            spot = default_spot(scene, pose["position"], pose["direction"])
+            spot.angle = np.radians(float(pose.get("angle_deg", np.degrees(spot.angle))))
+            spot.intensity = float(pose.get("intensity", spot.intensity))
+            spot.color = np.asarray(pose.get("color", spot.color), float)
+            spots.append(spot)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise RadTRError(f"{path}: not a list of poses with position and direction ({exc})") from None
+    if not spots:
+        raise RadTRError(f"{path}: no poses")
+    return spots
+
+
+def cmd_flashlight(args) -> int:
+    import bpy
+
+    from .blender.flashlight import flashlight_for, render_poses
+    from .blender.pipeline import solve
+
+    for w in open_scene(args.scene):
+        print(f"RadTR warning: {w}")
+    job = solve(bpy.context, settings_from(args))
+    light, meshes, warnings, hit = flashlight_for(job, args.level, args.backend,
+                                                  Path(args.out_dir) / "lowrank-cache")
+    for w in warnings:
+        print(f"RadTR warning: {w}")
+    print(f"RadTR: low-rank level {light.lowrank.level} ({light.lowrank.k:,} clusters) "
+          f"{'read from the cache' if hit else 'built'}")
+    for path in render_poses(bpy.context.scene, light, meshes, read_spots(args.poses, job.leaves), args.out_dir):
+        print(f"RadTR: rendered {path}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import run_benchmark
 
@@ -121,6 +165,14 @@ def main(argv=None) -> int:
     p.add_argument("--render", help="render the solved scene to this PNG")
     _settings_args(p)
     p.set_defaults(func=cmd_solve)
+    f = sub.add_parser("flashlight", help="solve, then render one PNG per flashlight pose (low-rank)")
+    f.add_argument("scene", help=".blend, .obj or bundled scene name")
+    f.add_argument("--poses", required=True, help="JSON list of {position, direction, angle_deg, intensity, color}")
+    f.add_argument("--out-dir", default="out/flashlight", help="folder for the PNGs and the low-rank cache")
+    f.add_argument("--level", type=int, default=1, help="hierarchy level of the low-rank clusters")
+    f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy or opencl")
+    _settings_args(f)
+    f.set_defaults(func=cmd_flashlight)
     b = sub.add_parser("bench", help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")
     b.add_argument("--quick", action="store_true", help="smaller sizes, for a quick look")

@@ -69,3 +69,20 @@ def test_bench_solvers_quick(tmp_path):
     assert prec[("shooting", "float64")] < 1e-6 and prec[("shooting", "float32")] < 1e-4
     coarse, fine = tables["floor"][0], tables["floor"][1]
     assert coarse["triangles"] < fine["triangles"] and coarse["error_vs_cycles"] > fine["error_vs_cycles"]
+
+
+def test_flashlight_poses_render_pngs_and_bad_poses_are_clear(tmp_path):
+    poses = tmp_path / "poses.json"
+    poses.write_text(json.dumps([{"position": [0.278, -0.8, 0.273], "direction": [0, 1, -0.3]},
+                                 {"position": [0.278, -0.8, 0.273], "direction": [0.3, 1, 0], "angle_deg": 10,
+                                  "color": [1, 0.5, 0.2]}]))
+    args = ("--max-area", "0.004", "--levels", "2", "--method", "embree", "--rays", "64", "--tolerance", "0.01")
+    out = run("flashlight", "cornell_box", "--poses", str(poses), "--out-dir", str(tmp_path / "f"), *args)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "built" in out.stdout
+    assert sorted(p.name for p in (tmp_path / "f").glob("*.png")) == ["flashlight_000.png", "flashlight_001.png"]
+    again = run("flashlight", "cornell_box", "--poses", str(poses), "--out-dir", str(tmp_path / "f"), *args)
+    assert "read from the cache" in again.stdout
+    poses.write_text('[{"position": [0, 0, 0]}]')
+    bad = run("flashlight", "cornell_box", "--poses", str(poses), "--out-dir", str(tmp_path / "f"), *args)
+    assert bad.returncode == 2 and "poses.json" in bad.stderr and "Traceback" not in bad.stderr

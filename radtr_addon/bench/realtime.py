@@ -1,9 +1,10 @@
 """``bench realtime``: low-rank precompute and flashlight frames on the Cornell box.
 
-For about 3,584 / 10,000 / 50,000 / 100,000 patches (``--quick``: 896 / 3,584) in a 3-level
-hierarchy, the level whose cluster count is nearest ``CLUSTERS`` (k) is factored from Embree
-rows (256 rays). Table ``precompute``: seconds by stage (hierarchy, form factors of the k
-representatives, U, LU) and the memory of U, next to the seed's set-up (Tables 7 and 10).
+For about 3,584 / 10,000 / 50,000 / 100,000 patches (``--quick``: 896 / 3,584) the hierarchy
+gets enough levels (each round halves the area limit) for a level near ``CLUSTERS`` nodes,
+and that level (k clusters) is factored from Embree rows (256 rays). Table ``precompute``:
+seconds by stage (hierarchy, form factors of the k representatives, U, LU) and the memory
+of U, next to the seed's set-up (Tables 7 and 10).
 Table ``frames``: per back-end, colour and mono, ms per frame by stage (visibility of the
 spot, the k-sized coefficients, the n x k product, write-back into the Blender meshes) and
 updates per second, over ``FRAMES`` spot poses; ``bound_ms`` is the time a memory-bound
@@ -36,7 +37,7 @@ def spots(count: int) -> list[Spot]:
             for a in angles]
 
 
-def job_for(target: int, levels: int = 3):
+def job_for(target: int, levels: int):
     """A SolveJob (not solved) of the Cornell box at about ``target`` patches, with result meshes."""
     import bpy
 
@@ -96,10 +97,11 @@ def run(quick: bool = False) -> dict[str, list[dict]]:
     pre, per_frame = [], []
     for target in ((896, 3584) if quick else SIZES):
         t0 = time.perf_counter()
-        job = job_for(target)
+        clusters = min(CLUSTERS, target // 4)
+        job = job_for(target, 1 + max(1, round(np.log2(target / clusters))))
         setup = time.perf_counter() - t0
         ks = [len(r) for r in job.hierarchy.representative]
-        level = int(np.argmin([abs(k - min(CLUSTERS, job.leaves.n // 4)) for k in ks]))
+        level = 1 + int(np.argmin([abs(k - clusters) for k in ks[1:]]))
         lowrank = build(job.hierarchy, job.rows, level, dtype=np.float32, budget_bytes=16 << 30)
         s = lowrank.seconds
         pre.append({"patches": job.leaves.n, "level": level, "clusters": lowrank.k,

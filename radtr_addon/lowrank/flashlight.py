@@ -59,6 +59,11 @@ class Flashlight:
         self.seconds = {"visibility": 0.0, "solve": 0.0}
         self.frames = 0
 
+    @property
+    def lowrank(self):
+        """The colour factors (mono ones are derived from them)."""
+        return self._colour
+
     def set_mono(self, mono: bool):
         if mono == self.mono:
             return
