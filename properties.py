@@ -69,6 +69,10 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Low-Rank Level", default=1, min=0, max=12,
         description="Hierarchy level whose nodes are the flashlight's clusters: finer is more exact, "
                     "slower to precompute and to update (solve with Levels above it)")
+    lowrank_refine: IntProperty(
+        name="Refine To", default=0, min=0, soft_max=8192,
+        description="Split the level's clusters that carry the most light until there are this many "
+                    "(several levels combined: more exact at the same size); 0 keeps the level as it is")
     lowrank_backend: EnumProperty(
         name="Back-End", default="numpy",
         items=[("numpy", "NumPy", "BLAS product on the CPU"),

@@ -32,7 +32,8 @@ class RADTR_OT_flashlight(bpy.types.Operator):
     def invoke(self, context, event):
         s = context.scene.radtr
         try:
-            light, meshes, warnings, hit = flashlight_for(running["last"], s.lowrank_level, s.lowrank_backend)
+            light, meshes, warnings, hit = flashlight_for(running["last"], s.lowrank_level, s.lowrank_backend,
+                                                          refine_to=s.lowrank_refine)
         except RadTRError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -56,6 +56,7 @@ class RADTR_PT_main(bpy.types.Panel):
         col.separator()
         col.label(text="Flashlight")
         col.prop(s, "lowrank_level")
+        col.prop(s, "lowrank_refine")
         col.prop(s, "lowrank_backend")
         col.operator("radtr.flashlight", icon="LIGHT_SPOT")
         col.separator()

@@ -140,10 +140,10 @@ def cmd_flashlight(args) -> int:
         print(f"RadTR warning: {w}")
     job = solve(bpy.context, settings_from(args))
     light, meshes, warnings, hit = flashlight_for(job, args.level, args.backend,
-                                                  Path(args.out_dir) / "lowrank-cache")
+                                                  Path(args.out_dir) / "lowrank-cache", args.refine_to)
     for w in warnings:
         print(f"RadTR warning: {w}")
-    print(f"RadTR: low-rank level {light.lowrank.level} ({light.lowrank.k:,} clusters) "
+    print(f"RadTR: low-rank {light.lowrank.k:,} clusters "
           f"{'read from the cache' if hit else 'built'}")
     for path in render_poses(bpy.context.scene, light, meshes, read_spots(args.poses, job.leaves), args.out_dir):
         print(f"RadTR: rendered {path}")
@@ -170,6 +170,8 @@ def main(argv=None) -> int:
     f.add_argument("--poses", required=True, help="JSON list of {position, direction, angle_deg, intensity, color}")
     f.add_argument("--out-dir", default="out/flashlight", help="folder for the PNGs and the low-rank cache")
     f.add_argument("--level", type=int, default=1, help="hierarchy level of the low-rank clusters")
+    f.add_argument("--refine-to", type=int, default=0,
+                   help="refine the level's clusters where the light is until there are this many")
     f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy or opencl")
     _settings_args(f)
     f.set_defaults(func=cmd_flashlight)

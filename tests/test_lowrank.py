@@ -46,6 +46,18 @@ def test_coarser_levels_approximate_it(box):
     assert errors[-1] < 1e-12 and errors[0] > 2 * errors[1]     # measured 0.35, 0.083, 0.083, 6.5e-16
 
 
+def test_a_cut_must_cover_every_patch_once(box):
+    from radtr_addon.lowrank import build_cut
+
+    h, rows = box
+    whole = [(1, g) for g in range(len(h.representative[1]))]
+    with pytest.raises(SceneError, match="uncovered"):
+        build_cut(h, rows, whole[1:])
+    with pytest.raises(SceneError, match="twice"):
+        build_cut(h, rows, whole + [(0, 0)])
+    np.testing.assert_allclose(build_cut(h, rows, whole).U, build(h, rows, 1).U)
+
+
 @pytest.mark.parametrize("name", sorted(BACKENDS))
 @pytest.mark.parametrize("mono", [False, True])
 def test_backends_match_numpy_float64(box, name, mono):

@@ -19,7 +19,12 @@ g, worst when i is near or inside g. With k = n (the leaf level) V = I and U = K
 solve is exact. Per frame we keep U once (not three Y's) and an LU of the k x k matrix per
 channel: w = V^T E, z_c = M_c^-1 w_c, and all three channels in one n x k by k x 3 product,
 B = E + rho * (U Z).
-"""
-from .factor import LowRank, build, level_bytes
 
-__all__ = ["LowRank", "build", "level_bytes"]
+Several levels combined (``build_cut``): the clusters can be any cut through the hierarchy,
+nodes of different levels covering every leaf once; V_jg = A_j / A_rep(g) is then not 1 for
+all leaves. ``refined_cut`` starts from one level and splits the nodes that carry the most
+light until the cut has the clusters asked for.
+"""
+from .factor import LowRank, build, build_cut, level_bytes, refined_cut
+
+__all__ = ["LowRank", "build", "build_cut", "level_bytes", "refined_cut"]

@@ -27,19 +27,32 @@ def make_backend(name: str, lowrank, dtype=np.float32):
 
 
 class NumpyBackend:
-    """U in host memory, one BLAS GEMM per frame (numpy's, multithreaded)."""
+    """U in host memory, one BLAS GEMM per frame.
+
+    The GEMM is called as U^T-transposed on U's row-major storage (``gemm(U.T, Z, trans_a)``):
+    with only 3 columns in Z, OpenBLAS reads U once that way, where ``U @ Z`` took 1.7x longer
+    at 55,808 x 872 (``bench realtime``).
+    """
 
     def __init__(self, lowrank, dtype=np.float32):
+        from scipy.linalg import blas
+
         self.lowrank, self.dtype = lowrank, np.dtype(dtype)
         self.U = np.ascontiguousarray(lowrank.U, dtype=self.dtype)
         self.rho = lowrank.rho.astype(self.dtype)
+        single = self.dtype == np.float32
+        self._gemm, self._gemv = (blas.sgemm, blas.sgemv) if single else (blas.dgemm, blas.dgemv)
         self.seconds = {"coefficients": 0.0, "product": 0.0}
 
     def solve(self, E: np.ndarray) -> np.ndarray:
         t0 = time.perf_counter()
         Z = self.lowrank.coefficients(E).astype(self.dtype)
         t1 = time.perf_counter()
-        B = E + self.rho * (self.U @ Z)
+        if Z.shape[1] == 1:                      # mono: a matrix-vector product
+            UZ = self._gemv(1.0, self.U.T, Z[:, 0], trans=1)[:, None]
+        else:
+            UZ = self._gemm(1.0, self.U.T, Z, trans_a=True)
+        B = E + self.rho * UZ
         self.seconds["coefficients"] += t1 - t0
         self.seconds["product"] += time.perf_counter() - t1
         return B

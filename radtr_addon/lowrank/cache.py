@@ -1,7 +1,8 @@
 """Low-rank factors kept on disk, keyed by everything they depend on.
 
-The key hashes the leaf geometry (vertices, triangles), reflectances, the level's clusters,
-the form-factor settings and the dtype: any change gives another file. A file holds
+The key hashes the leaf geometry (vertices, triangles), reflectances and emission (a refined
+cut follows the light), the clusters of the level and those below, the cut's size, the
+form-factor settings and the dtype: any change gives another file. A file holds
 the arrays and a SHA-256 of their bytes; one that is truncated, corrupt or from another key
 is reported (``warnings``) and rebuilt. In Blender the folder is the extension's user
 directory (``bpy.utils.extension_path_user``); in batch any folder.
@@ -15,16 +16,16 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .factor import LowRank, build
+from .factor import LowRank, build, build_cut, refined_cut
 
 
-def cache_key(hierarchy, level: int, ff_label: str, dtype) -> str:
+def cache_key(hierarchy, level: int, ff_label: str, dtype, refine_to: int = 0) -> str:
     leaves = hierarchy.leaves
     h = hashlib.sha256()
-    for a in (leaves.vertices, leaves.triangles, leaves.rho, hierarchy.cluster[level],
-              hierarchy.representative[level]):
+    for a in (leaves.vertices, leaves.triangles, leaves.rho, leaves.emission, *hierarchy.cluster[level:],
+              *hierarchy.representative[level:]):
         h.update(np.ascontiguousarray(a).tobytes())
-    h.update(f"{level}|{ff_label}|{np.dtype(dtype).name}".encode())
+    h.update(f"{level}|{refine_to}|{ff_label}|{np.dtype(dtype).name}".encode())
     return h.hexdigest()[:32]
 
 
@@ -72,11 +73,12 @@ def load(path: Path, key: str) -> LowRank:
 
 
 def cached_build(hierarchy, rows, level: int, folder: Path, *, ff_label: str, dtype=np.float64,
-                 warnings: list | None = None, **kw) -> tuple[LowRank, bool]:
-    """(factors, True if read from the cache): load them when the key matches, else build and save."""
+                 refine_to: int = 0, warnings: list | None = None, **kw) -> tuple[LowRank, bool]:
+    """(factors, True if read from the cache): load them when the key matches, else build and
+    save. ``refine_to`` > 0 refines the level into a cut of that many clusters (``refined_cut``)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    key = cache_key(hierarchy, level, ff_label, dtype)
+    key = cache_key(hierarchy, level, ff_label, dtype, refine_to)
     path = folder / f"lowrank-{key}.npz"
     if path.exists():
         try:
@@ -84,6 +86,9 @@ def cached_build(hierarchy, rows, level: int, folder: Path, *, ff_label: str, dt
         except ValueError as exc:
             if warnings is not None:
                 warnings.append(f"low-rank cache {exc}; rebuilding")
-    lr = build(hierarchy, rows, level, dtype=dtype, **kw)
+    if refine_to > len(hierarchy.representative[level]):
+        lr = build_cut(hierarchy, rows, refined_cut(hierarchy, rows, level, refine_to), dtype=dtype, **kw)
+    else:
+        lr = build(hierarchy, rows, level, dtype=dtype, **kw)
     save(lr, path, key)
     return lr, False
