@@ -1,0 +1,177 @@
+"""Direct light from Blender Light objects at the patches: the first bounce, before any solve.
+
+Units follow Cycles. A point or spot light of power P (W) and colour C has radiant intensity
+I = P C / (4 pi) W/sr (a spot is a point light masked by its cone, not focused), so a patch
+at distance d with cosine cos gets H = I cos / d^2. An area light of power P and area A
+emits radiance L = P C / (pi A) from its front (-Z) side, so H = pi L F(p -> light) =
+(P C / A) F, with F the closed-form point-to-polygon form factor (disks and ellipses as
+32-gons). A sun of strength S (W/m^2) gives H = S C cos. Lights with a size (point radius,
+area shape, sun angle) are sampled with ``samples`` deterministic shadow rays per patch, so
+shadows are soft; all visibility is by Embree. The patch's first-bounce exitance is then
+E_i = rho_i H_i, and any solver carries it further.
+
+Culling: a light is not traced at a patch where its unoccluded irradiance is below
+``cull`` times that of the brightest light there; the light so left out is reported as
+``culled`` power (W per channel).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .reconstruct import point_to_triangles
+
+KINDS = ("POINT", "SPOT", "AREA", "SUN")
+SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
+#: Sides of the polygon standing for a disk or ellipse area light.
+ROUND_SIDES = 32
+
+
+@dataclass
+class Light:
+    """A Blender light in world space (``matrix``: its world matrix; it shines along -Z)."""
+
+    name: str
+    kind: str
+    color: np.ndarray
+    power: float                     # W; for a sun, strength in W/m^2
+    matrix: np.ndarray = field(default_factory=lambda: np.eye(4))
+    radius: float = 0.0              # point/spot soft size (m); for a sun, its angle (rad)
+    spot_size: float = np.pi / 4     # full cone angle
+    spot_blend: float = 0.15
+    shape: str = "SQUARE"
+    size_x: float = 1.0
+    size_y: float = 1.0
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.matrix[:3, 3]
+
+    @property
+    def axis(self) -> np.ndarray:
+        """The direction the light shines in (world -Z of the light)."""
+        z = self.matrix[:3, 2]
+        return -z / np.linalg.norm(z)
+
+    def polygon(self) -> np.ndarray:
+        """An area light's outline in world space, counter-clockwise seen from its front."""
+        if self.shape in ("DISK", "ELLIPSE"):
+            t = -np.linspace(0, 2 * np.pi, ROUND_SIDES, endpoint=False)
+            # equal-area polygon: scale so the polygon's area is the ellipse's
+            scale = np.sqrt(np.pi / (0.5 * ROUND_SIDES * np.sin(2 * np.pi / ROUND_SIDES)))
+            local = np.stack([np.cos(t) * scale, np.sin(t) * scale], 1) * 0.5
+        else:
+            local = np.array([[0.5, 0.5], [0.5, -0.5], [-0.5, -0.5], [-0.5, 0.5]])
+        sy = self.size_y if self.shape in ("RECTANGLE", "ELLIPSE") else self.size_x
+        pts = np.column_stack([local[:, 0] * self.size_x, local[:, 1] * sy, np.zeros(len(local)), np.ones(len(local))])
+        return (pts @ self.matrix.T)[:, :3]
+
+    def area(self) -> float:
+        sy = self.size_y if self.shape in ("RECTANGLE", "ELLIPSE") else self.size_x
+        world = np.linalg.norm(self.matrix[:3, 0]) * np.linalg.norm(self.matrix[:3, 1])
+        factor = np.pi / 4 if self.shape in ("DISK", "ELLIPSE") else 1.0
+        return factor * self.size_x * sy * world
+
+
+def _fan(poly: np.ndarray) -> np.ndarray:
+    return np.stack([np.broadcast_to(poly[0], (len(poly) - 2, 3)), poly[1:-1], poly[2:]], axis=1)
+
+
+def _stratified(count: int):
+    m = max(1, int(round(np.sqrt(count))))
+    cells = np.arange(m * m)
+    return (cells // m + 0.5) / m, (cells % m + 0.5) / m
+
+
+def _sample_points(light: Light, count: int) -> np.ndarray:
+    """Deterministic points on the light's emitting surface (its centre when it has none)."""
+    u, v = _stratified(count)
+    if light.kind == "AREA":
+        tris = _fan(light.polygon())
+        areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+        pick = np.minimum(np.searchsorted(np.cumsum(areas) / areas.sum(), (np.arange(len(u)) + 0.5) / len(u)),
+                          len(tris) - 1)
+        s = np.sqrt(u)[:, None]
+        a, b, c = tris[pick, 0], tris[pick, 1], tris[pick, 2]
+        return (1 - s) * a + s * (1 - v[:, None]) * b + s * v[:, None] * c
+    if light.radius > 0 and light.kind in ("POINT", "SPOT"):
+        z = 1 - 2 * u
+        r = np.sqrt(np.maximum(1 - z * z, 0))
+        phi = 2 * np.pi * v
+        return light.position + light.radius * np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    return light.position[None]
+
+
+def spot_mask(light: Light, to_point: np.ndarray) -> np.ndarray:
+    """Cycles' spot cone with blend: 0 outside, smoothstep over the blend band inside the edge."""
+    cos_half = np.cos(light.spot_size / 2)
+    c = to_point @ light.axis
+    smooth = (1 - cos_half) * light.spot_blend
+    t = np.clip((c - cos_half) / smooth, 0.0, 1.0) if smooth > 0 else (c > cos_half).astype(float)
+    return np.where(c > cos_half, t * t * (3 - 2 * t), 0.0)
+
+
+def unoccluded(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Irradiance (k,) per unit colour from ``light`` at points facing ``normals``, no shadows."""
+    if light.kind == "SUN":
+        return light.power * np.maximum(normals @ -light.axis, 0.0)
+    if light.kind == "AREA":
+        F = point_to_triangles(points, normals, _fan(light.polygon())).sum(axis=1)
+        return light.power / max(light.area(), 1e-300) * F
+    d = light.position - points
+    dist = np.linalg.norm(d, axis=1)
+    u = d / np.maximum(dist, 1e-300)[:, None]
+    H = light.power / (4 * np.pi) * np.maximum(np.einsum("ij,ij->i", u, normals), 0.0) / np.maximum(dist, 1e-300) ** 2
+    return H * spot_mask(light, -u) if light.kind == "SPOT" else H
+
+
+def visibility(light: Light, points: np.ndarray, embree_scene, samples: int, epsilon: float) -> np.ndarray:
+    """Fraction (k,) of shadow rays from each point that reach the light."""
+    if light.kind == "SUN":
+        u, v = _stratified(samples if light.radius > 0 else 1)
+        half = light.radius / 2
+        theta, phi = half * np.sqrt(u), 2 * np.pi * v
+        w = -light.axis
+        t = np.cross(w, [1.0, 0, 0] if abs(w[0]) < 0.9 else [0, 1.0, 0])
+        t /= np.linalg.norm(t)
+        b = np.cross(w, t)
+        dirs = (np.cos(theta)[:, None] * w + np.sin(theta)[:, None] * (np.cos(phi)[:, None] * t
+                                                                      + np.sin(phi)[:, None] * b))
+        origins = np.repeat(points, len(dirs), axis=0)
+        d = np.tile(dirs, (len(points), 1))
+        dist = np.full(len(d), 1e30)
+    else:
+        targets = _sample_points(light, samples)
+        d = targets[None] - points[:, None]
+        dist = np.linalg.norm(d, axis=-1).ravel()
+        d = d.reshape(-1, 3) / np.maximum(dist, 1e-300)[:, None]
+        origins = np.repeat(points, len(targets), axis=0)
+        dist = dist * (1 - 1e-5)
+    blocked = embree_scene.run((origins + epsilon * d).astype(np.float32), d.astype(np.float32),
+                               dists=dist.astype(np.float32), query="OCCLUDED")
+    return (blocked < 0).reshape(len(points), -1).mean(axis=1)
+
+
+def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: float = 1e-3, caster=None):
+    """(H (n, 3) at the patch centres, culled power (3,) W): the light of ``lights`` on ``scene``."""
+    from .formfactors.raycast import EmbreeRays
+
+    caster = caster or EmbreeRays(scene, 1)
+    points = scene.centroids + caster.epsilon * scene.normals
+    bounds = np.array([unoccluded(light, points, scene.normals) * light.color.max() for light in lights])
+    H = np.zeros((scene.n, 3))
+    culled = np.zeros(3)
+    if not len(lights):
+        return H, culled
+    brightest = bounds.max(axis=0)
+    for light, bound in zip(lights, bounds):
+        raw = bound / max(light.color.max(), 1e-300)
+        keep = (bound > 0) & (bound >= cull * brightest)
+        skipped = (bound > 0) & ~keep
+        culled += (raw[skipped] * scene.areas[skipped]).sum() * light.color
+        ids = np.flatnonzero(keep)
+        if len(ids):
+            vis = visibility(light, points[ids], caster._embree, samples, caster.epsilon)
+            H[ids] += np.outer(raw[ids] * vis, light.color)
+    return H, culled

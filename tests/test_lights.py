@@ -1,0 +1,106 @@
+"""Direct light from Light objects against closed forms: point, spot, area (square, disk),
+sun, shadows, soft shadows and culling (no bpy)."""
+import numpy as np
+import pytest
+
+from radtr_addon.formfactors.closed_form import point_to_polygon
+from radtr_addon.lights import Light, direct_irradiance
+from radtr_addon.scene import PatchScene
+
+
+def plane(half=2.0, cells=16, z=0.0):
+    """A square of (2 cells^2) triangles facing +z."""
+    g = np.linspace(-half, half, cells + 1)
+    x, y = np.meshgrid(g, g)
+    m = cells + 1
+    v = np.column_stack([x.ravel(), y.ravel(), np.full(m * m, z)])
+    q = [(r * m + c, r * m + c + 1, (r + 1) * m + c + 1, (r + 1) * m + c) for r in range(cells) for c in range(cells)]
+    t = [[a, b, c] for a, b, c, d in q] + [[a, c, d] for a, b, c, d in q]
+    return PatchScene(v, t, 0.5, 0.0, 0, 0)
+
+
+def at(position, rotation=np.eye(3), scale=1.0):
+    m = np.eye(4)
+    m[:3, :3] = rotation * scale
+    m[:3, 3] = position
+    return m
+
+
+WHITE = np.ones(3)
+
+
+def test_point_light_is_i_cos_over_d_squared():
+    s = plane()
+    light = Light("lamp", "POINT", np.array([1.0, 0.5, 0.25]), 100.0, at([0.3, -0.2, 1.5]))
+    H, culled = direct_irradiance(s, [light])
+    d = light.position - s.centroids
+    r = np.linalg.norm(d, axis=1)
+    expected = 100.0 / (4 * np.pi) * (d[:, 2] / r) / r ** 2
+    np.testing.assert_allclose(H, np.outer(expected, light.color), rtol=2e-5)   # points lifted 1e-6 x diagonal
+    assert np.all(culled == 0)
+
+
+def test_sun_is_strength_times_cos():
+    s = plane()
+    tilt = np.radians(30)
+    rot = np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    H, _ = direct_irradiance(s, [Light("sun", "SUN", WHITE, 3.0, at([0, 0, 5], rot))])
+    np.testing.assert_allclose(H, 3.0 * np.cos(tilt), rtol=1e-12)
+
+
+@pytest.mark.parametrize("shape", ["SQUARE", "DISK"])
+def test_area_light_from_its_closed_form(shape):
+    s = plane(half=0.05, cells=1)                      # a small receiver under the light's centre
+    light = Light("panel", "AREA", WHITE, 50.0, at([0, 0, 1.0]), shape=shape, size_x=0.8)   # shines along -z
+    H, _ = direct_irradiance(s, [light])
+    if shape == "DISK":                                # on the axis: F = R^2 / (R^2 + h^2)
+        R = 0.4
+        expected = [50.0 / (np.pi * R * R) * R * R / (R * R + (1.0 - c[2]) ** 2) for c in s.centroids]
+        np.testing.assert_allclose(H[:, 0], expected, rtol=0.01)
+    else:
+        poly = light.polygon()
+        expected = [50.0 / 0.64 * point_to_polygon(c, [0, 0, 1.0], poly) for c in s.centroids]
+        np.testing.assert_allclose(H[:, 0], expected, rtol=2e-5)
+    light.matrix = at([0, 0, 1.0], np.diag([1.0, -1.0, -1.0]))     # turned to face up, away from the receiver
+    assert np.all(direct_irradiance(s, [light])[0] == 0)
+
+
+def test_spot_cone_and_blend():
+    s = plane(half=3.0, cells=30)
+    spot = Light("spot", "SPOT", WHITE, 100.0, at([0, 0, 1.0]), spot_size=np.radians(60), spot_blend=0.2)
+    H, _ = direct_irradiance(s, [spot])
+    point, _ = direct_irradiance(s, [Light("p", "POINT", WHITE, 100.0, at([0, 0, 1.0]))])
+    angle = np.degrees(np.arctan(np.linalg.norm(s.centroids[:, :2], axis=1)))
+    inner = angle < 25                                  # inside the blend band: the point light's value
+    np.testing.assert_allclose(H[inner], point[inner], rtol=1e-9)
+    assert np.all(H[angle > 30.5] == 0)
+    band = (angle > 28) & (angle < 29.5)
+    assert band.any() and np.all((H[band] > 0) & (H[band] < point[band]))
+
+
+def test_shadows_hard_and_soft():
+    s = plane()
+    blocker = np.array([[-0.5, -0.5, 0.5], [0.5, -0.5, 0.5], [0.5, 0.5, 0.5], [-0.5, 0.5, 0.5]])
+    v = np.vstack([s.vertices, blocker])
+    n0 = len(s.vertices)
+    t = np.vstack([s.triangles, [[n0, n0 + 1, n0 + 2], [n0, n0 + 2, n0 + 3]]])
+    scene = PatchScene(v, t, 0.5, 0.0, 0, 0)
+    hard = Light("p", "POINT", WHITE, 100.0, at([0, 0, 1.0]))
+    H, _ = direct_irradiance(scene, [hard])
+    r = np.abs(scene.centroids[:-2, :2]).max(axis=1)
+    assert np.all(H[:-2][r < 0.9] == 0) and np.all(H[:-2][r > 1.1] > 0)    # the shadow is 2 x the blocker
+    soft = Light("p", "POINT", WHITE, 100.0, at([0, 0, 1.0]), radius=0.3)
+    S, _ = direct_irradiance(scene, [soft], samples=64)
+    edge = (r > 0.8) & (r < 1.2)
+    assert np.any((S[:-2][edge, 0] > 0) & (S[:-2][edge, 0] < 0.95 * H[:-2][edge, 0] + 1e-12))
+
+
+def test_weak_lights_are_culled_and_reported():
+    s = plane()
+    strong = Light("strong", "POINT", WHITE, 1000.0, at([0, 0, 1.0]))
+    weak = Light("weak", "POINT", WHITE, 1e-4, at([1.0, 0, 1.0]))
+    H, culled = direct_irradiance(s, [strong, weak])
+    alone, _ = direct_irradiance(s, [strong])
+    weak_alone, _ = direct_irradiance(s, [weak])
+    np.testing.assert_allclose(H, alone, rtol=1e-12)
+    np.testing.assert_allclose(culled, (weak_alone * s.areas[:, None]).sum(axis=0), rtol=1e-9)
