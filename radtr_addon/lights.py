@@ -126,8 +126,10 @@ def unoccluded(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndar
     return H * spot_mask(light, -u) if light.kind == "SPOT" else H
 
 
-def visibility(light: Light, points: np.ndarray, embree_scene, samples: int, epsilon: float) -> np.ndarray:
-    """Fraction (k,) of shadow rays from each point that reach the light."""
+def visibility(light: Light, points: np.ndarray, normals: np.ndarray, embree_scene, samples: int,
+               epsilon: float) -> np.ndarray:
+    """Fraction (k,) of shadow rays from each point that reach the light, among the rays above
+    the point's horizon (the part of a light below it is already clipped from its form factor)."""
     if light.kind == "SUN":
         u, v = _stratified(samples if light.radius > 0 else 1)
         half = light.radius / 2
@@ -150,28 +152,41 @@ def visibility(light: Light, points: np.ndarray, embree_scene, samples: int, eps
         dist = dist * (1 - 1e-5)
     blocked = embree_scene.run((origins + epsilon * d).astype(np.float32), d.astype(np.float32),
                                dists=dist.astype(np.float32), query="OCCLUDED")
-    return (blocked < 0).reshape(len(points), -1).mean(axis=1)
+    above = (np.einsum("ij,ij->i", d, np.repeat(normals, len(d) // len(points), axis=0)) > 0)
+    seen = ((blocked < 0) & above).reshape(len(points), -1).sum(axis=1)
+    return seen / np.maximum(above.reshape(len(points), -1).sum(axis=1), 1)
+
+
+#: Where a patch's irradiance is taken: the centroids of its four midpoint children
+#: (barycentric), averaged, so light that changes across a patch is integrated, not point-sampled.
+PATCH_POINTS = np.array([[4, 1, 1], [1, 4, 1], [1, 1, 4], [2, 2, 2]]) / 6.0
 
 
 def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: float = 1e-3, caster=None):
-    """(H (n, 3) at the patch centres, culled power (3,) W): the light of ``lights`` on ``scene``."""
+    """(H (n, 3), culled power (3,) W): the light of ``lights`` on the patches of ``scene``,
+    the mean over ``PATCH_POINTS`` of each patch."""
     from .formfactors.raycast import EmbreeRays
 
-    caster = caster or EmbreeRays(scene, 1)
-    points = scene.centroids + caster.epsilon * scene.normals
-    bounds = np.array([unoccluded(light, points, scene.normals) * light.color.max() for light in lights])
     H = np.zeros((scene.n, 3))
     culled = np.zeros(3)
     if not len(lights):
         return H, culled
+    caster = caster or EmbreeRays(scene, 1)
+    corners = scene.vertices[scene.triangles]                                # (n, 3, 3)
+    k = len(PATCH_POINTS)
+    normals = np.repeat(scene.normals, k, axis=0)
+    points = np.einsum("pc,ncd->npd", PATCH_POINTS, corners).reshape(-1, 3) + caster.epsilon * normals
+    area = np.repeat(scene.areas / k, k)
+    bounds = np.array([unoccluded(light, points, normals) * light.color.max() for light in lights])
+    Hp = np.zeros((len(points), 3))
     brightest = bounds.max(axis=0)
     for light, bound in zip(lights, bounds):
         raw = bound / max(light.color.max(), 1e-300)
         keep = (bound > 0) & (bound >= cull * brightest)
         skipped = (bound > 0) & ~keep
-        culled += (raw[skipped] * scene.areas[skipped]).sum() * light.color
+        culled += (raw[skipped] * area[skipped]).sum() * light.color
         ids = np.flatnonzero(keep)
         if len(ids):
-            vis = visibility(light, points[ids], caster._embree, samples, caster.epsilon)
-            H[ids] += np.outer(raw[ids] * vis, light.color)
-    return H, culled
+            vis = visibility(light, points[ids], normals[ids], caster._embree, samples, caster.epsilon)
+            Hp[ids] += np.outer(raw[ids] * vis, light.color)
+    return Hp.reshape(scene.n, k, 3).mean(axis=1), culled

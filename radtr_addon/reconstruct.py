@@ -113,8 +113,9 @@ def point_to_triangles(points: np.ndarray, normals: np.ndarray, tris: np.ndarray
     return F
 
 
-def _visible_fraction(caster: EmbreeRays, points, pairs, targets) -> np.ndarray:
-    """Fraction of shadow rays from points[pairs[0]] to targets[pairs[1]] (J, S, 3) that arrive."""
+def _visible_fraction(caster: EmbreeRays, points, normals, pairs, targets) -> np.ndarray:
+    """Fraction of shadow rays from points[pairs[0]] to targets[pairs[1]] (J, S, 3) that arrive,
+    among those above the point's horizon (the form factor already clips the part below)."""
     p, j = pairs
     d = targets[j] - points[p][:, None]                               # (M, S, 3)
     dist = np.linalg.norm(d, axis=-1)
@@ -122,7 +123,9 @@ def _visible_fraction(caster: EmbreeRays, points, pairs, targets) -> np.ndarray:
     origins = np.broadcast_to(points[p][:, None], d.shape).reshape(-1, 3)
     blocked = caster._embree.run(origins.astype(np.float32), d.reshape(-1, 3).astype(np.float32),
                                  dists=(dist.ravel() * (1 - 1e-5)).astype(np.float32), query="OCCLUDED")
-    return (blocked.reshape(dist.shape) < 0).mean(axis=1)
+    above = np.einsum("msc,mc->ms", d, normals[p]) > 0
+    seen = ((blocked.reshape(dist.shape) < 0) & above).sum(axis=1)
+    return seen / np.maximum(above.sum(axis=1), 1)
 
 
 def gather(scene, B: np.ndarray, points: np.ndarray, normals: np.ndarray, rays: int = 256,
@@ -147,6 +150,6 @@ def gather(scene, B: np.ndarray, points: np.ndarray, normals: np.ndarray, rays: 
             F = point_to_triangles(lifted[block], normals[block], tris)
             pairs = np.nonzero(F > 0)
             if len(pairs[0]):
-                F[pairs] *= _visible_fraction(caster, lifted[block], pairs, targets)
+                F[pairs] *= _visible_fraction(caster, lifted[block], normals[block], pairs, targets)
             H[block] += F @ scene.emission[emitters]
     return H

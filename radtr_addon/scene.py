@@ -97,7 +97,8 @@ class PatchScene:
                 i = int(np.flatnonzero(bad)[0])
                 raise SceneError(f"{self.patch_label(i)}: {what} ({int(bad.sum())} patches in all)")
         if not np.any(self.emission > 0):
-            raise SceneError("nothing emits light: give a material emission (Emission Strength > 0)")
+            raise SceneError("nothing emits light: give a material emission (Emission Strength > 0) "
+                             "or add a light that reaches a surface")
 
     def without_degenerate(self) -> tuple["PatchScene", int]:
         """A copy without zero-area triangles, and how many were dropped."""

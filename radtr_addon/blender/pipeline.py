@@ -16,9 +16,11 @@ import numpy as np
 
 from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
+from ..lights import direct_irradiance
 from ..reconstruct import VertexRadiosity
 from ..solvers import make_solver
 from .extract import extract, source_objects
+from .lights import scene_lights
 from .write import write_results
 
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
@@ -83,6 +85,8 @@ class SolveJob:
             self.hierarchy = subdivide(base, max_area, settings.levels)
         self.leaves = self.hierarchy.leaves
         self.stats.patches = self.leaves.n
+        with self._stage("lights"):
+            self._add_lights(bl_scene, view_layer)
         self.leaves.validate()
         with self._stage("form_factor_init"):
             self.rows = FormFactors(self.leaves, settings.form_factors(), settings.cache_mb << 20)
@@ -94,6 +98,20 @@ class SolveJob:
                                       max_iterations=settings.max_iterations, dtype=settings.precision)
         self.result = None
         self.objects = []                       # the result objects, once written
+
+    def _add_lights(self, bl_scene, view_layer):
+        """Light objects' direct light, reflected once, joins the emission (``lights``)."""
+        lights, warnings = scene_lights(bl_scene, view_layer)
+        self.lights = lights
+        if lights:
+            H, culled = direct_irradiance(self.leaves, lights)
+            self.leaves.emission = self.leaves.emission + self.leaves.rho * H
+            if culled.max() > 0:
+                warnings.append(f"{culled.sum():.3g} W of weak light left out (culled) at patches where "
+                                f"a brighter light dominates")
+        for w in warnings:
+            self.log(f"RadTR warning: {w}")
+        self.stats.warnings += warnings
 
     @contextmanager
     def _stage(self, name):

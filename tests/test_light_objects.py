@@ -1,0 +1,113 @@
+"""Light objects in Blender scenes: each type over a plane against Cycles, the Cornell box lit
+by an area Light against its emissive quad, and bad lights reported."""
+import math
+
+import numpy as np
+import pytest
+
+from radtr_addon.blender.pipeline import Settings, solve
+
+FAST = dict(method="embree", rays=64, tolerance=1e-3)
+
+
+def add_plane(bpy, size=2.0, rho=(0.8, 0.6, 0.4)):
+    """A plane with a pure Diffuse BSDF (a Principled BSDF's specular layer takes about 4% from
+    its diffuse lobe in Cycles, which a diffuse bake then misses)."""
+    bpy.ops.mesh.primitive_plane_add(size=size)
+    plane = bpy.context.active_object
+    mat = bpy.data.materials.new("grey")
+    nodes = mat.node_tree.nodes
+    nodes.remove(nodes["Principled BSDF"])
+    diffuse = nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (*rho, 1)
+    mat.node_tree.links.new(diffuse.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
+    plane.data.materials.append(mat)
+    return plane
+
+
+def add_light(bpy, kind, location, rotation=(0, 0, 0), **props):
+    data = bpy.data.lights.new(kind.lower(), kind)
+    for k, v in props.items():
+        setattr(data, k, v)
+    obj = bpy.data.objects.new(kind.lower(), data)
+    obj.location, obj.rotation_euler = location, rotation
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+LIGHTS = {
+    "POINT": dict(location=(0.2, -0.1, 1.2), energy=200.0),
+    "SPOT": dict(location=(0, 0, 1.5), energy=300.0, spot_size=math.radians(70), spot_blend=0.3),
+    "AREA": dict(location=(0, 0, 0.8), energy=150.0, shape="DISK", size=0.6),
+    "SUN": dict(location=(0, 0, 3), rotation=(math.radians(25), 0, 0), energy=2.0),
+}
+
+
+def cycles_mean(bpy, obj, samples=256):
+    """Area-weighted mean reflected radiance baked by Cycles at the mesh's vertices (direct only)."""
+    from test_cycles_bake import vertex_area_mean
+
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    cy = scene.cycles
+    cy.device, cy.samples, cy.use_denoising, cy.use_adaptive_sampling = "CPU", samples, False, False
+    mesh = obj.data
+    mesh.color_attributes.active_color = mesh.color_attributes.new("bake", "FLOAT_COLOR", "POINT")
+    bpy.ops.object.select_all(action="DESELECT")
+    obj.hide_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.object.bake(type="DIFFUSE", pass_filter={"DIRECT", "COLOR"}, target="VERTEX_COLORS")
+    return vertex_area_mean(mesh, "bake")
+
+
+@pytest.mark.parametrize("kind", sorted(LIGHTS))
+def test_each_light_over_a_plane_matches_cycles(blend, kind):
+    bpy = blend
+    plane = add_plane(bpy)
+    props = dict(LIGHTS[kind])
+    add_light(bpy, kind, props.pop("location"), props.pop("rotation", (0, 0, 0)), **props)
+    job = solve(bpy.context, Settings(max_area=0.02, **FAST), log=lambda *_: None)
+    leaves = job.leaves
+    radtr = (leaves.emission * leaves.areas[:, None]).sum(axis=0) / leaves.areas.sum() / np.pi
+    result = bpy.data.objects["Plane_radtr"]
+    result.data.materials[0] = plane.data.materials[0]
+    cycles = cycles_mean(bpy, result)
+    np.testing.assert_allclose(radtr, cycles, rtol=0.03)
+    if kind == "SUN":                                    # and the closed form: rho S cos / pi
+        np.testing.assert_allclose(radtr, np.array([0.8, 0.6, 0.4]) * 2.0 * math.cos(math.radians(25)) / np.pi,
+                                   rtol=1e-6)
+
+
+def test_cornell_box_lit_by_an_area_light_matches_its_emissive_quad(cornell):
+    """The bundled light quad (radiance 17, 12, 4) against an area Light of the same size and power.
+    Hemicube rows: with rays, the small quad is hit by few rays per patch and the quad's side is noisy."""
+    bpy = cornell
+    settings = Settings(max_area=0.004, method="hemicube", resolution=128, solver="direct")
+    quad = solve(bpy.context, settings, log=lambda *_: None)
+    names = [o.name for o in quad.extraction.objects]
+    light = bpy.data.objects["light"]
+    co = np.array([light.matrix_world @ v.co for v in light.data.vertices])
+    lo, hi = co.min(axis=0), co.max(axis=0)
+    size_x, size_y = hi[0] - lo[0], hi[1] - lo[1]
+    radiance = np.array([17.0, 12.0, 4.0])
+    bpy.data.objects.remove(light)
+    add_light(bpy, "AREA", tuple((lo + hi) / 2 - [0, 0, 1e-4]), shape="RECTANGLE", size=size_x, size_y=size_y,
+              energy=float(np.pi * radiance[0] * size_x * size_y), color=tuple(radiance / radiance[0]))
+    lamp = solve(bpy.context, settings, log=lambda *_: None)
+    for k, name in enumerate(names):
+        if name == "light":
+            continue
+        sel_q = quad.leaves.object_index == k
+        sel_l = lamp.leaves.object_index == [o.name for o in lamp.extraction.objects].index(name)
+        mean_q = (quad.result.B[sel_q] * quad.leaves.areas[sel_q, None]).sum(0) / quad.leaves.areas[sel_q].sum()
+        mean_l = (lamp.result.B[sel_l] * lamp.leaves.areas[sel_l, None]).sum(0) / lamp.leaves.areas[sel_l].sum()
+        np.testing.assert_allclose(mean_l, mean_q, rtol=0.02, err_msg=name)
+
+
+def test_bad_lights_are_named_and_skipped(cornell):
+    bpy = cornell
+    add_light(bpy, "POINT", (0.3, -0.3, 0.3), energy=float("nan")).name = "broken lamp"
+    job = solve(bpy.context, Settings(max_area=0.01, **FAST), log=lambda *_: None)
+    assert any("'broken lamp'" in w and "skipped" in w for w in job.stats.warnings)
+    assert job.result.converged
