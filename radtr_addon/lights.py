@@ -10,6 +10,11 @@ area shape, sun angle) are sampled with ``samples`` deterministic shadow rays pe
 shadows are soft; all visibility is by Embree. The patch's first-bounce exitance is then
 E_i = rho_i H_i, and any solver carries it further.
 
+The World: a distant sky of radiance L(direction), uniform (a World colour) or from an
+equirectangular environment image, gives H = integral of L cos over the directions in which
+nothing blocks the sky: ``sky_irradiance`` estimates it with cosine-weighted Embree rays,
+H = pi x mean(L over the rays that escape).
+
 Culling: a light is not traced at a patch where its unoccluded irradiance is below
 ``cull`` times that of the brightest light there; the light so left out is reported as
 ``culled`` power (W per channel).
@@ -190,3 +195,46 @@ def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: fl
             vis = visibility(light, points[ids], normals[ids], caster._embree, samples, caster.epsilon)
             Hp[ids] += np.outer(raw[ids] * vis, light.color)
     return Hp.reshape(scene.n, k, 3).mean(axis=1), culled
+
+
+def equirect_lookup(image: np.ndarray):
+    """Radiance by direction from an equirectangular image (h, w, 3), as Cycles maps it:
+    u = 1/2 - atan2(y, x) / (2 pi), v = 1/2 + asin(z) / pi (v up), nearest texel."""
+    h, w = image.shape[:2]
+
+    def radiance(dirs: np.ndarray) -> np.ndarray:
+        u = 0.5 - np.arctan2(dirs[:, 1], dirs[:, 0]) / (2 * np.pi)
+        v = 0.5 + np.arcsin(np.clip(dirs[:, 2], -1, 1)) / np.pi
+        col = np.minimum((u % 1.0) * w, w - 1).astype(np.int64)
+        row = np.minimum((1 - v) * h, h - 1).astype(np.int64)        # image row 0 is the top
+        return image[row, col, :3]
+    return radiance
+
+
+def sky_irradiance(scene, radiance, rays: int = 64, seed: int = 0, caster=None) -> np.ndarray:
+    """Irradiance (n, 3) at the patches from a distant sky of ``radiance(dirs) -> (k, 3)``
+    (W/m^2/sr): pi x the mean radiance over cosine-weighted rays that leave the scene."""
+    from .formfactors.hemicube import tangent_frames
+    from .formfactors.raycast import EmbreeRays
+
+    caster = caster or EmbreeRays(scene, rays, seed)
+    m2 = caster.rays
+    H = np.zeros((scene.n, 3))
+    per_call = max(1, (1 << 20) // m2)
+    for start in range(0, scene.n, per_call):
+        ids = np.arange(start, min(start + per_call, scene.n))
+        u, v = _stratified(m2)
+        rng = np.random.default_rng((seed, 2, start))
+        u = (u[None] + (rng.random((len(ids), m2)) - 0.5) / caster.side) % 1.0
+        v = (v[None] + (rng.random((len(ids), m2)) - 0.5) / caster.side) % 1.0
+        radius, phi = np.sqrt(u), 2 * np.pi * v
+        n = scene.normals[ids]
+        t, b = tangent_frames(n)
+        local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
+        dirs = (local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * n[:, None]).reshape(-1, 3)
+        origins = np.repeat(scene.centroids[ids] + caster.epsilon * n, m2, axis=0)
+        blocked = caster._embree.run(origins.astype(np.float32), dirs.astype(np.float32),
+                                     dists=np.full(len(dirs), 1e30, np.float32), query="OCCLUDED")
+        L = radiance(dirs) * (blocked < 0)[:, None]                       # -1: nothing in the way
+        H[ids] = np.pi * L.reshape(len(ids), m2, 3).mean(axis=1)
+    return H

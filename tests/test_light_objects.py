@@ -111,3 +111,49 @@ def test_bad_lights_are_named_and_skipped(cornell):
     job = solve(bpy.context, Settings(max_area=0.01, **FAST), log=lambda *_: None)
     assert any("'broken lamp'" in w and "skipped" in w for w in job.stats.warnings)
     assert job.result.converged
+
+
+def set_world(bpy, color=(0.5, 0.5, 0.5), strength=2.0, image=None):
+    world = bpy.data.worlds.new("sky")
+    bpy.context.scene.world = world
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*color, 1)
+    bg.inputs["Strength"].default_value = strength
+    if image is not None:
+        env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+        env.image = image
+        world.node_tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    return world
+
+
+def test_uniform_world_lights_an_open_plane_like_cycles(blend):
+    bpy = blend
+    plane = add_plane(bpy)
+    set_world(bpy)
+    job = solve(bpy.context, Settings(max_area=0.05, **FAST), log=lambda *_: None)
+    radtr = (job.leaves.emission * job.leaves.areas[:, None]).sum(axis=0) / job.leaves.areas.sum() / np.pi
+    np.testing.assert_allclose(radtr, np.array([0.8, 0.6, 0.4]) * np.pi * 1.0 / np.pi, rtol=1e-6)  # rho pi L / pi
+    result = bpy.data.objects["Plane_radtr"]
+    result.data.materials[0] = plane.data.materials[0]
+    np.testing.assert_allclose(radtr, cycles_mean(bpy, result), rtol=0.03)
+
+
+def test_environment_image_and_a_missing_one(blend, tmp_path):
+    bpy = blend
+    add_plane(bpy)
+    img = bpy.data.images.new("env", 16, 8, float_buffer=True)
+    px = np.zeros((8, 16, 4), np.float32)
+    px[4:, :, :3] = 3.0                                  # Blender rows go up: the top half (z > 0) bright
+    px[..., 3] = 1
+    img.pixels.foreach_set(px.ravel())
+    set_world(bpy, strength=1.0, image=img)
+    job = solve(bpy.context, Settings(max_area=0.05, **FAST), log=lambda *_: None)
+    e = job.leaves.emission
+    np.testing.assert_allclose(e, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * np.pi * 3.0, e.shape), rtol=1e-6)
+    missing = bpy.data.images.new("nowhere", 4, 4)
+    missing.source, missing.filepath = "FILE", str(tmp_path / "nowhere.exr")       # no such file
+    set_world(bpy, color=(0.2, 0.2, 0.2), strength=1.0, image=missing)
+    job = solve(bpy.context, Settings(max_area=0.05, **FAST), log=lambda *_: None)
+    assert any("image 'nowhere'" in w and "Background colour" in w for w in job.stats.warnings)
+    e = job.leaves.emission
+    np.testing.assert_allclose(e, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * np.pi * 0.2, e.shape), rtol=1e-6)

@@ -112,3 +112,41 @@ def test_weak_lights_are_culled_and_reported():
     weak_alone, _ = direct_irradiance(s, [weak])
     np.testing.assert_allclose(H, alone, rtol=1e-12)
     np.testing.assert_allclose(culled, (weak_alone * s.areas[:, None]).sum(axis=0), rtol=1e-9)
+
+
+def test_uniform_sky_on_an_open_plane_is_pi_l():
+    from radtr_addon.lights import sky_irradiance
+
+    s = plane()
+    H = sky_irradiance(s, lambda d: np.tile([0.5, 1.0, 2.0], (len(d), 1)))
+    np.testing.assert_allclose(H, np.broadcast_to(np.pi * np.array([0.5, 1.0, 2.0]), H.shape), rtol=1e-12)
+
+
+def test_sky_through_an_opening_is_pi_l_times_the_form_factor():
+    """The floor of a unit box open on top sees the sky through the opening only."""
+    from radtr_addon.formfactors.closed_form import parallel_rectangles
+    from radtr_addon.lights import sky_irradiance
+
+    v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2)]   # tests/geometry.cube, no top
+    t = [[a, b, c] for a, b, c, d in quads] + [[a, c, d] for a, b, c, d in quads]
+    box = PatchScene(v, t, 0.5, 0.0, 0, 0)
+    from radtr_addon.hierarchy import subdivide
+
+    leaves = subdivide(box, 1 / 32, 1).leaves
+    H = sky_irradiance(leaves, lambda d: np.ones((len(d), 3)), rays=4096)
+    floor = np.abs(leaves.centroids[:, 2]) < 1e-9
+    mean = (H[floor, 0] * leaves.areas[floor]).sum() / leaves.areas[floor].sum()
+    np.testing.assert_allclose(mean, np.pi * parallel_rectangles(1, 1, 1), rtol=0.01)
+
+
+def test_environment_image_lookup_follows_cycles_mapping():
+    from radtr_addon.lights import equirect_lookup
+
+    img = np.zeros((4, 8, 3))
+    img[:2] = 1.0                                     # the top half (z > 0) bright
+    img[:, 4:, 1] = 2.0                               # u > 1/2: directions with atan2(y, x) < 0 (y < 0)
+    f = equirect_lookup(img)
+    d = np.array([[0, 0, 1.0], [0, 0, -1.0], [0.0, -1, 0.1], [0.0, 1, 0.1]])
+    got = f(d)
+    assert got[0, 0] == 1 and got[1, 0] == 0 and got[2, 1] == 2 and got[3, 1] != 2

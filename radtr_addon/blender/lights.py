@@ -35,3 +35,65 @@ def scene_lights(bl_scene, view_layer) -> tuple[list[Light], list[str]]:
             light.shape, light.size_x, light.size_y = d.shape, float(d.size), float(d.size_y)
         lights.append(light)
     return lights, warnings
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def world_radiance(bl_scene):
+    """(radiance(dirs) -> (k, 3) or None, warnings) of the scene's World as a distant sky.
+
+    Read: the Background node on the World Output's Surface, Color x Strength; a Color linked
+    from an Environment Texture gives radiance by direction (equirectangular, sRGB images
+    made linear). Anything else, or an image that cannot be loaded, falls back to the
+    socket's own colour with a warning naming the world and node.
+    """
+    from ..lights import equirect_lookup
+
+    world, warnings = bl_scene.world, []
+    if world is None or world.node_tree is None:
+        return None, warnings
+    out = next((n for n in world.node_tree.nodes if n.type == "OUTPUT_WORLD" and n.is_active_output), None)
+    link = out.inputs["Surface"].links[0] if out and out.inputs["Surface"].is_linked else None
+    node = link.from_node if link else None
+    if node is None or node.type != "BACKGROUND":
+        if node is not None:
+            warnings.append(f"world '{world.name}': node '{node.name}' is not a Background; the world gives no light")
+        return None, warnings
+    strength = float(node.inputs["Strength"].default_value)
+    color = np.array(node.inputs["Color"].default_value[:3], float)
+    if node.inputs["Strength"].is_linked:
+        warnings.append(f"world '{world.name}': Strength of '{node.name}' is linked; using its value {strength:g}")
+    if node.inputs["Color"].is_linked:
+        src = node.inputs["Color"].links[0].from_node
+        image = getattr(src, "image", None) if src.type == "TEX_ENVIRONMENT" else None
+        pixels = _image_pixels(image)
+        if pixels is not None:
+            lookup = equirect_lookup(pixels * strength)
+            return lookup, warnings
+        what = (f"image '{image.name}' could not be loaded" if image is not None and src.type == "TEX_ENVIRONMENT"
+                else f"node '{src.name}' cannot be evaluated")
+        warnings.append(f"world '{world.name}': {what}; using the Background colour instead")
+    if not np.isfinite(strength) or strength * color.max() <= 0:
+        return None, warnings
+    radiance = color * strength
+    return (lambda dirs: np.broadcast_to(radiance, (len(dirs), 3))), warnings
+
+
+def _image_pixels(image) -> np.ndarray | None:
+    """(h, w, 3) linear pixels with row 0 at the top, or None when the image has no data."""
+    if image is None:
+        return None
+    try:
+        w, h = image.size
+        if not (w and h) or not image.has_data and not image.pixels:
+            return None
+        px = np.empty(w * h * image.channels, dtype=np.float32)
+        image.pixels.foreach_get(px)
+    except (RuntimeError, ReferenceError):
+        return None
+    px = px.reshape(h, w, image.channels)[::-1, :, :3].astype(np.float64)
+    if image.colorspace_settings.name == "sRGB" and not image.is_float:
+        px = _srgb_to_linear(px)
+    return px

@@ -16,11 +16,11 @@ import numpy as np
 
 from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
-from ..lights import direct_irradiance
+from ..lights import direct_irradiance, sky_irradiance
 from ..reconstruct import VertexRadiosity
 from ..solvers import make_solver
 from .extract import extract, source_objects
-from .lights import scene_lights
+from .lights import scene_lights, world_radiance
 from .write import write_results
 
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
@@ -100,15 +100,22 @@ class SolveJob:
         self.objects = []                       # the result objects, once written
 
     def _add_lights(self, bl_scene, view_layer):
-        """Light objects' direct light, reflected once, joins the emission (``lights``)."""
+        """Light objects' and the World's direct light, reflected once, joins the emission (``lights``)."""
         lights, warnings = scene_lights(bl_scene, view_layer)
+        sky, sky_warnings = world_radiance(bl_scene)
+        warnings += sky_warnings
         self.lights = lights
+        H = np.zeros_like(self.leaves.emission)
         if lights:
-            H, culled = direct_irradiance(self.leaves, lights)
-            self.leaves.emission = self.leaves.emission + self.leaves.rho * H
+            direct, culled = direct_irradiance(self.leaves, lights)
+            H += direct
             if culled.max() > 0:
                 warnings.append(f"{culled.sum():.3g} W of weak light left out (culled) at patches where "
                                 f"a brighter light dominates")
+        if sky is not None:
+            H += sky_irradiance(self.leaves, sky)
+        if lights or sky is not None:
+            self.leaves.emission = self.leaves.emission + self.leaves.rho * H
         for w in warnings:
             self.log(f"RadTR warning: {w}")
         self.stats.warnings += warnings
