@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SceneError
-from ..scene import PatchScene
+from ..scene import DEGENERATE_AREA_FRACTION, PatchScene
 from .materials import read_material
 
 RESULT_COLLECTION = "RadTR"
@@ -26,6 +26,10 @@ class Extraction:
     scene: PatchScene
     objects: list          # bpy Objects, indexed by PatchScene.object_index
     warnings: list[str] = field(default_factory=list)
+    uv: np.ndarray | None = None            # (t, 3, 2) corner UVs of the triangles (NaN: none)
+    corner_color: np.ndarray | None = None  # (t, 3, 3) corner colours (NaN: none)
+    textures: dict = field(default_factory=dict)    # material index -> (h, w, 3) image
+    attributes: dict = field(default_factory=dict)  # material index -> colour attribute name
 
 
 def result_objects(bl_scene) -> list:
@@ -60,19 +64,26 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
     parts = []
     offset = 0
     for k, obj in enumerate(objects):
-        verts, tris, slots = _object_triangles(obj, depsgraph)
-        if len(tris) == 0:
-            warnings.append(f"object '{obj.name}' has no faces; skipped")
-            continue
+        slots = [s.material for s in obj.evaluated_get(depsgraph).material_slots]
         local = np.zeros(max(len(slots), 1), dtype=np.int64)
+        attrs = set()
         for s, mat in enumerate(slots or [None]):
             key = mat.name if mat else "(no material)"
             if key not in materials:
                 materials[key] = len(materials)
                 mat_props.append(read_material(mat))
             local[s] = materials[key]
+            props = mat_props[local[s]]
+            if props.texture is not None:
+                attrs.add("UV")
+            if props.attribute is not None:
+                attrs.add(props.attribute)
+        verts, tris, uv, colors = _object_triangles(obj, depsgraph, attrs, warnings)
+        if len(tris) == 0:
+            warnings.append(f"object '{obj.name}' has no faces; skipped")
+            continue
         mat_index = local[np.clip(tris[:, 3], 0, len(local) - 1)]
-        parts.append((verts, tris[:, :3] + offset, mat_index, k))
+        parts.append((verts, tris[:, :3] + offset, mat_index, k, uv, colors))
         offset += len(verts)
     if not parts:
         raise SceneError("the visible mesh objects have no faces")
@@ -88,10 +99,15 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
         rho[mat_index], emission[mat_index],
         np.concatenate([np.full(len(p[1]), p[3]) for p in parts]), mat_index,
         [o.name for o in objects], names)
-    scene, dropped = scene.without_degenerate()
-    if dropped:
-        warnings.append(f"{dropped} zero-area triangles dropped")
-    return Extraction(scene, list(objects), warnings)
+    uv = np.concatenate([p[4] for p in parts])
+    colors = np.concatenate([p[5] for p in parts])
+    keep = scene.areas > DEGENERATE_AREA_FRACTION * scene.areas.mean()
+    if not keep.all():
+        warnings.append(f"{int((~keep).sum())} zero-area triangles dropped")
+        scene, uv, colors = scene.subset(keep), uv[keep], colors[keep]
+    textures = {i: p.texture for i, p in enumerate(mat_props) if p.texture is not None}
+    attributes = {i: p.attribute for i, p in enumerate(mat_props) if p.attribute is not None}
+    return Extraction(scene, list(objects), warnings, uv, colors, textures, attributes)
 
 
 def _clamp_reflectance(rho, names, limit, warnings):
@@ -107,8 +123,10 @@ def _clamp_reflectance(rho, names, limit, warnings):
     return np.clip(rho, 0.0, limit)
 
 
-def _object_triangles(obj, depsgraph):
-    """World-space vertices (v, 3) and triangles (t, 4: three vertex ids, material slot)."""
+def _object_triangles(obj, depsgraph, attrs=(), warnings=None):
+    """World-space vertices (v, 3), triangles (t, 4: three vertex ids, material slot), and per
+    corner UVs (t, 3, 2) and colours (t, 3, 3) when ``attrs`` asks for "UV" or a colour
+    attribute name ("" = the active one); NaN where not asked or missing."""
     evaluated = obj.evaluated_get(depsgraph)
     mesh = evaluated.to_mesh()
     try:
@@ -123,10 +141,39 @@ def _object_triangles(obj, depsgraph):
         mesh.loop_triangles.foreach_get("vertices", tri)
         mat = np.empty(t, dtype=np.int32)
         mesh.loop_triangles.foreach_get("material_index", mat)
+        loops = np.empty(t * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("loops", loops)
+        uv = np.full((t, 3, 2), np.nan)
+        colors = np.full((t, 3, 3), np.nan)
+        for name in attrs:
+            if name == "UV":
+                layer = mesh.uv_layers.active
+                if layer is None:
+                    warnings.append(f"object '{obj.name}' has a texture but no UV map; using the texture's mean")
+                    continue
+                data = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+                layer.data.foreach_get("uv", data)
+                uv = data.reshape(-1, 2)[loops].reshape(t, 3, 2).astype(np.float64)
+            else:
+                colors = _corner_colors(obj, mesh, name, tri, loops, warnings)
         if np.linalg.det(m[:3, :3]) < 0:                # mirrored: keep normals outward
             tri = tri.reshape(-1, 3)[:, ::-1].ravel()
+            uv, colors = uv[:, ::-1], colors[:, ::-1]
         tris = np.column_stack([tri.reshape(-1, 3), mat]).astype(np.int64)
-        slots = [s.material for s in evaluated.material_slots]
     finally:
         evaluated.to_mesh_clear()
-    return world, tris, slots
+    return world, tris, uv, colors
+
+
+def _corner_colors(obj, mesh, name, tri, loops, warnings):
+    """Corner colours (t, 3, 3) of colour attribute ``name`` (POINT or CORNER domain)."""
+    attr = mesh.color_attributes.get(name) if name else mesh.color_attributes.active_color
+    t = len(loops) // 3
+    if attr is None:
+        warnings.append(f"object '{obj.name}': no colour attribute '{name}'; using the material's colour")
+        return np.full((t, 3, 3), np.nan)
+    data = np.empty(len(attr.data) * 4, dtype=np.float32)
+    attr.data.foreach_get("color", data)
+    data = data.reshape(-1, 4)[:, :3].astype(np.float64)
+    index = tri if attr.domain == "POINT" else loops
+    return data[index].reshape(t, 3, 3)

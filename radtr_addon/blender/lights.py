@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..lights import KINDS, Light
+from .images import image_pixels
 
 
 def scene_lights(bl_scene, view_layer) -> tuple[list[Light], list[str]]:
@@ -35,10 +36,6 @@ def scene_lights(bl_scene, view_layer) -> tuple[list[Light], list[str]]:
             light.shape, light.size_x, light.size_y = d.shape, float(d.size), float(d.size_y)
         lights.append(light)
     return lights, warnings
-
-
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def world_radiance(bl_scene):
@@ -68,9 +65,9 @@ def world_radiance(bl_scene):
     if node.inputs["Color"].is_linked:
         src = node.inputs["Color"].links[0].from_node
         image = getattr(src, "image", None) if src.type == "TEX_ENVIRONMENT" else None
-        pixels = _image_pixels(image)
+        pixels = image_pixels(image)
         if pixels is not None:
-            lookup = equirect_lookup(pixels * strength)
+            lookup = equirect_lookup(pixels[::-1] * strength)            # row 0 at the top
             return lookup, warnings
         what = (f"image '{image.name}' could not be loaded" if image is not None and src.type == "TEX_ENVIRONMENT"
                 else f"node '{src.name}' cannot be evaluated")
@@ -80,20 +77,3 @@ def world_radiance(bl_scene):
     radiance = color * strength
     return (lambda dirs: np.broadcast_to(radiance, (len(dirs), 3))), warnings
 
-
-def _image_pixels(image) -> np.ndarray | None:
-    """(h, w, 3) linear pixels with row 0 at the top, or None when the image has no data."""
-    if image is None:
-        return None
-    try:
-        w, h = image.size
-        if not (w and h) or not image.has_data and not image.pixels:
-            return None
-        px = np.empty(w * h * image.channels, dtype=np.float32)
-        image.pixels.foreach_get(px)
-    except (RuntimeError, ReferenceError):
-        return None
-    px = px.reshape(h, w, image.channels)[::-1, :, :3].astype(np.float64)
-    if image.colorspace_settings.name == "sRGB" and not image.is_float:
-        px = _srgb_to_linear(px)
-    return px

@@ -22,9 +22,11 @@ DEFAULT_REFLECTANCE = (0.8, 0.8, 0.8)
 
 @dataclass
 class SurfaceProps:
-    rho: np.ndarray        # (3,)
+    rho: np.ndarray        # (3,); for a texture, its mean
     emission: np.ndarray   # (3,) W/m^2
     warnings: list[str]
+    texture: np.ndarray | None = None   # (h, w, 3) linear base colour image (``textures``)
+    attribute: str | None = None        # colour attribute name ("" = the mesh's active one)
 
 
 def _rgb(socket) -> np.ndarray:
@@ -45,14 +47,28 @@ def read_material(mat) -> SurfaceProps:
     node = _surface_node(mat)
     if node is None:
         return SurfaceProps(fallback, np.zeros(3), warnings)
+    colour_input = {"BSDF_PRINCIPLED": "Base Color", "BSDF_DIFFUSE": "Color"}.get(node.type)
+    varying = _varying_colour(mat, node, colour_input, warnings) if colour_input else None
+    if varying is not None:
+        texture, attribute, rho = varying
+        props = _read_constant(mat, node, rho, warnings, skip=colour_input)
+        props.texture, props.attribute = texture, attribute
+        return props
+    return _read_constant(mat, node, fallback, warnings)
+
+
+def _read_constant(mat, node, fallback, warnings, skip=None) -> SurfaceProps:
+    """Reflectance and emission of the surface shader ``node`` (``skip``: a colour input read elsewhere)."""
     rho, emission = fallback, np.zeros(3)
     if node.type == "BSDF_PRINCIPLED":
-        rho = _socket_rgb(mat, node, "Base Color", fallback, warnings)
+        if skip != "Base Color":
+            rho = _socket_rgb(mat, node, "Base Color", fallback, warnings)
         color = _socket_rgb(mat, node, "Emission Color", np.zeros(3), warnings)
         strength = _socket_float(mat, node, "Emission Strength", 0.0, warnings)
         emission = np.pi * strength * color
     elif node.type == "BSDF_DIFFUSE":
-        rho = _socket_rgb(mat, node, "Color", fallback, warnings)
+        if skip != "Color":
+            rho = _socket_rgb(mat, node, "Color", fallback, warnings)
     elif node.type == "EMISSION":
         rho = np.zeros(3)
         color = _socket_rgb(mat, node, "Color", np.ones(3), warnings)
@@ -61,6 +77,28 @@ def read_material(mat) -> SurfaceProps:
         warnings.append(f"material '{mat.name}': shader node '{node.name}' ({node.type}) is not "
                         f"read by RadTR; using its viewport colour {tuple(np.round(fallback, 3))}")
     return SurfaceProps(rho, emission, warnings)
+
+
+def _varying_colour(mat, node, name, warnings):
+    """(texture, attribute, mean colour) when ``name`` is fed by an Image Texture or a Color
+    Attribute node; None otherwise (the caller reads the socket as a constant)."""
+    from .images import image_pixels
+
+    sock = node.inputs.get(name)
+    if sock is None or not sock.is_linked:
+        return None
+    src = sock.links[0].from_node
+    if src.type == "TEX_IMAGE":
+        pixels = image_pixels(src.image)
+        if pixels is None:
+            what = f"image '{src.image.name}'" if src.image else "no image"
+            warnings.append(f"material '{mat.name}': Image Texture '{src.name}' has {what} that could not be "
+                            f"loaded; using the '{name}' value instead")
+            return None
+        return pixels, None, pixels.reshape(-1, 3).mean(axis=0)
+    if src.type == "VERTEX_COLOR":
+        return None, src.layer_name, np.array(sock.default_value[:3], float)
+    return None
 
 
 def _surface_node(mat):

@@ -19,6 +19,7 @@ from ..hierarchy import subdivide
 from ..lights import direct_irradiance, sky_irradiance
 from ..reconstruct import VertexRadiosity
 from ..solvers import make_solver
+from ..textures import varying_reflectance
 from .extract import extract, source_objects
 from .lights import scene_lights, world_radiance
 from .write import write_results
@@ -85,6 +86,11 @@ class SolveJob:
             self.hierarchy = subdivide(base, max_area, settings.levels)
         self.leaves = self.hierarchy.leaves
         self.stats.patches = self.leaves.n
+        if self.extraction.textures or self.extraction.attributes:
+            with self._stage("textures"):
+                self.leaves.rho, warnings = varying_reflectance(self.extraction, self.hierarchy,
+                                                                settings.max_reflectance)
+            self.stats.warnings += warnings
         with self._stage("lights"):
             self._add_lights(bl_scene, view_layer)
         self.leaves.validate()
