@@ -38,7 +38,7 @@ def test_surface_means_match_cycles(cornell):
     targets = []
     for k, src in enumerate(job.extraction.objects):
         res = bpy.data.objects[f"{src.name}_radtr"]
-        res.data.materials[0] = src.data.materials[0]
+        res.data.materials[0] = src.obj.data.materials[0]
         if src.name == "light":
             continue
         res.data.color_attributes.active_color = res.data.color_attributes.new("bake", "FLOAT_COLOR", "POINT")

@@ -144,7 +144,7 @@ def cycles_bakes(job, vmap: VertexMap, samples) -> dict[int, tuple[np.ndarray, f
     targets = []
     for src in job.extraction.objects:
         res = bpy.data.objects[f"{src.name}_radtr"]
-        res.data.materials[0] = src.data.materials[0]
+        res.data.materials[0] = src.obj.data.materials[0]
         res.select_set(src.name in [name for name, _ in vmap.parts])
         if res.select_get():
             attr = res.data.color_attributes.new("bake", "FLOAT_COLOR", "POINT")

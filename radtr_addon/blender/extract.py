@@ -1,8 +1,11 @@
-"""Read the visible mesh objects of a Blender scene into a PatchScene.
+"""Read the visible mesh objects of a Blender scene, and their instances, into a PatchScene.
 
 Meshes are taken evaluated (modifiers applied), in world space, triangulated by Blender's
 loop triangles. Objects in the result collection are skipped; sources a previous solve hid
-are read again, so solving twice gives the same patches.
+are read again, so solving twice gives the same patches. Collection and geometry-nodes
+instances of objects come from the evaluated depsgraph, each instance a ``Source`` with its
+own patches (and its own result mesh); geometry instanced without an object must be
+realised (Realize Instances) to take part.
 """
 from __future__ import annotations
 
@@ -22,9 +25,20 @@ MAX_REFLECTANCE = 0.95
 
 
 @dataclass
+class Source:
+    """One mesh that takes part: an object, or one instance of an object."""
+
+    name: str
+    obj: object                 # the object whose mesh and materials are read
+    matrix: np.ndarray          # its world matrix (the instance's, for an instance)
+    owner: object               # what a solve hides behind its result: the object, or the instancer
+    instance: bool = False
+
+
+@dataclass
 class Extraction:
     scene: PatchScene
-    objects: list          # bpy Objects, indexed by PatchScene.object_index
+    objects: list          # Sources, indexed by PatchScene.object_index
     warnings: list[str] = field(default_factory=list)
     uv: np.ndarray | None = None            # (t, 3, 2) corner UVs of the triangles (NaN: none)
     corner_color: np.ndarray | None = None  # (t, 3, 3) corner colours (NaN: none)
@@ -46,12 +60,33 @@ def bpy_collection(bl_scene):
     return None
 
 
-def source_objects(bl_scene, view_layer) -> list:
-    """Mesh objects that take part: visible ones and sources hidden by a previous solve."""
+def source_objects(bl_scene, view_layer) -> list[Source]:
+    """Meshes that take part: visible mesh objects, sources hidden by a previous solve, and the
+    object instances of visible instancers (hidden ones are shown for a moment to be read)."""
     results = set(result_objects(bl_scene))
-    return [o for o in bl_scene.objects
-            if o.type == "MESH" and o not in results
-            and (o.get(HIDDEN_SOURCE) or o.visible_get(view_layer=view_layer))]
+    out = [Source(o.name, o, np.array(o.matrix_world), o) for o in bl_scene.objects
+           if o.type == "MESH" and o not in results
+           and (o.get(HIDDEN_SOURCE) or o.visible_get(view_layer=view_layer))]
+    hidden = [o for o in bl_scene.objects if o.get(HIDDEN_SOURCE) and o.hide_get()]
+    for o in hidden:
+        o.hide_set(False)
+    try:
+        view_layer.update()
+        counts: dict[str, int] = {}
+        for inst in view_layer.depsgraph.object_instances:
+            if not inst.is_instance or inst.object.type != "MESH" or inst.parent is None:
+                continue
+            owner = inst.parent.original
+            if owner in results:
+                continue
+            counts[owner.name] = counts.get(owner.name, 0) + 1
+            obj = inst.object.original
+            out.append(Source(f"{owner.name}.{obj.name}.{counts[owner.name]:03d}", obj,
+                              np.array(inst.matrix_world), owner, True))
+    finally:
+        for o in hidden:
+            o.hide_set(True)
+    return out
 
 
 def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Extraction:
@@ -63,8 +98,8 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
     mat_props = []
     parts = []
     offset = 0
-    for k, obj in enumerate(objects):
-        slots = [s.material for s in obj.evaluated_get(depsgraph).material_slots]
+    for k, src in enumerate(objects):
+        slots = [s.material for s in src.obj.evaluated_get(depsgraph).material_slots]
         local = np.zeros(max(len(slots), 1), dtype=np.int64)
         attrs = set()
         for s, mat in enumerate(slots or [None]):
@@ -78,9 +113,9 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
                 attrs.add("UV")
             if props.attribute is not None:
                 attrs.add(props.attribute)
-        verts, tris, uv, colors = _object_triangles(obj, depsgraph, attrs, warnings)
+        verts, tris, uv, colors = _object_triangles(src, depsgraph, attrs, warnings)
         if len(tris) == 0:
-            warnings.append(f"object '{obj.name}' has no faces; skipped")
+            warnings.append(f"object '{src.name}' has no faces; skipped")
             continue
         mat_index = local[np.clip(tris[:, 3], 0, len(local) - 1)]
         parts.append((verts, tris[:, :3] + offset, mat_index, k, uv, colors))
@@ -123,10 +158,11 @@ def _clamp_reflectance(rho, names, limit, warnings):
     return np.clip(rho, 0.0, limit)
 
 
-def _object_triangles(obj, depsgraph, attrs=(), warnings=None):
+def _object_triangles(src, depsgraph, attrs=(), warnings=None):
     """World-space vertices (v, 3), triangles (t, 4: three vertex ids, material slot), and per
     corner UVs (t, 3, 2) and colours (t, 3, 3) when ``attrs`` asks for "UV" or a colour
     attribute name ("" = the active one); NaN where not asked or missing."""
+    obj = src.obj
     evaluated = obj.evaluated_get(depsgraph)
     mesh = evaluated.to_mesh()
     try:
@@ -134,7 +170,7 @@ def _object_triangles(obj, depsgraph, attrs=(), warnings=None):
         co = np.empty(len(mesh.vertices) * 3)
         mesh.vertices.foreach_get("co", co)
         co = co.reshape(-1, 3)
-        m = np.array(evaluated.matrix_world)
+        m = src.matrix
         world = co @ m[:3, :3].T + m[:3, 3]
         t = len(mesh.loop_triangles)
         tri = np.empty(t * 3, dtype=np.int32)

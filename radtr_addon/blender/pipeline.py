@@ -188,11 +188,17 @@ class SolveJob:
         self.log(f"RadTR: {self.summary()}")
         return objects
 
+    @property
+    def instances(self) -> int:
+        """How many of the meshes solved are instances."""
+        return sum(1 for src in self.extraction.objects if src.instance)
+
     def summary(self) -> str:
         r = self.result
         unit = "shots" if r.method == "shooting" else "sweeps" if r.method != "direct" else "solve"
         state = "converged" if r.converged else "stopped at the iteration cap (Continue goes on)"
-        return (f"{self.leaves.n:,} patches, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
+        inst = f" ({self.instances:,} instances)" if self.instances else ""
+        return (f"{self.leaves.n:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
                 f"{state}; energy balance error {r.balance_error():.1e}")
 
 

@@ -90,6 +90,10 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", ve
     """
     import bpy
 
+    from ..errors import SceneError
+
+    if mode == "REPLACE" and any(src.instance for src in extraction.objects):
+        raise SceneError("Result: Replace cannot write into instances; use Copies")
     vertex_values = vertex_values or VertexRadiosity(leaves, B)
     meshes = []
     try:
@@ -123,16 +127,18 @@ def _link_copies(bl_scene, meshes, material):
         mesh.materials.append(material)
         obj = bpy.data.objects.new(mesh.name, mesh)
         coll.objects.link(obj)
-        src[HIDDEN_SOURCE] = True
-        src.hide_set(True)
-        src.hide_render = True
+        owner = src.owner
+        owner[HIDDEN_SOURCE] = True
+        owner.hide_set(True)
+        owner.hide_render = True
         out.append(obj)
     return out
 
 
 def _replace(meshes):
     out = []
-    for src, mesh in meshes:
+    for source, mesh in meshes:
+        src = source.owner
         inv = np.array(src.matrix_world.inverted())
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
