@@ -15,6 +15,10 @@ equirectangular environment image, gives H = integral of L cos over the directio
 nothing blocks the sky: ``sky_irradiance`` estimates it with cosine-weighted Embree rays,
 H = pi x mean(L over the rays that escape).
 
+Two-sided emitters: a mesh emits from its front (its patches); where its material is
+two-sided, the back of each emitting input triangle is added as a polygon area light
+(``Light.back_of``), so its light reaches what lies behind as first-bounce light.
+
 Culling: a light is not traced at a patch where its unoccluded irradiance is below
 ``cull`` times that of the brightest light there; the light so left out is reported as
 ``culled`` power (W per channel).
@@ -48,6 +52,14 @@ class Light:
     shape: str = "SQUARE"
     size_x: float = 1.0
     size_y: float = 1.0
+    outline: np.ndarray | None = None  # an area light of any polygon (world space), e.g. an emitter's back
+
+    @classmethod
+    def back_of(cls, name: str, triangle: np.ndarray, exitance: np.ndarray) -> "Light":
+        """The back side of a two-sided emitting triangle (exitance E, W/m^2) as an area light."""
+        area = 0.5 * np.linalg.norm(np.cross(triangle[1] - triangle[0], triangle[2] - triangle[0]))
+        peak = float(exitance.max())
+        return cls(name, "AREA", exitance / peak, peak * area, outline=triangle[::-1].copy())
 
     @property
     def position(self) -> np.ndarray:
@@ -61,6 +73,8 @@ class Light:
 
     def polygon(self) -> np.ndarray:
         """An area light's outline in world space, counter-clockwise seen from its front."""
+        if self.outline is not None:
+            return self.outline
         if self.shape in ("DISK", "ELLIPSE"):
             t = -np.linspace(0, 2 * np.pi, ROUND_SIDES, endpoint=False)
             # equal-area polygon: scale so the polygon's area is the ellipse's
@@ -73,6 +87,9 @@ class Light:
         return (pts @ self.matrix.T)[:, :3]
 
     def area(self) -> float:
+        if self.outline is not None:
+            fan = _fan(self.outline)
+            return float(0.5 * np.linalg.norm(np.cross(fan[:, 1] - fan[:, 0], fan[:, 2] - fan[:, 0]), axis=1).sum())
         sy = self.size_y if self.shape in ("RECTANGLE", "ELLIPSE") else self.size_x
         world = np.linalg.norm(self.matrix[:3, 0]) * np.linalg.norm(self.matrix[:3, 1])
         factor = np.pi / 4 if self.shape in ("DISK", "ELLIPSE") else 1.0

@@ -157,3 +157,30 @@ def test_environment_image_and_a_missing_one(blend, tmp_path):
     assert any("image 'nowhere'" in w and "Background colour" in w for w in job.stats.warnings)
     e = job.leaves.emission
     np.testing.assert_allclose(e, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * np.pi * 0.2, e.shape), rtol=1e-6)
+
+
+@pytest.mark.parametrize("two_sided", [True, False])
+def test_emitter_back_lights_what_is_behind_it_like_cycles(blend, two_sided):
+    """An emitting square facing up, 1 m above a plane: Cycles lights the plane from the
+    square's back; RadTR does too unless the material's Backface Culling makes it one-sided."""
+    bpy = blend
+    plane = add_plane(bpy)
+    bpy.ops.mesh.primitive_plane_add(size=0.5, location=(0, 0, 1))
+    emitter = bpy.context.active_object
+    mat = bpy.data.materials.new("glow")
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
+    bsdf.inputs["Emission Color"].default_value = (1, 1, 1, 1)
+    bsdf.inputs["Emission Strength"].default_value = 5.0
+    mat.use_backface_culling = not two_sided
+    emitter.data.materials.append(mat)
+    job = solve(bpy.context, Settings(max_area=0.05, **FAST), log=lambda *_: None)
+    floor = job.leaves.object_index == [s.name for s in job.extraction.objects].index("Plane")
+    a = job.leaves.areas[floor, None]
+    radtr = (job.leaves.emission[floor] * a).sum(axis=0) / a.sum() / np.pi     # the floor's own light is reflected
+    if not two_sided:
+        assert np.all(radtr == 0)
+        return
+    result = bpy.data.objects["Plane_radtr"]
+    result.data.materials[0] = plane.data.materials[0]
+    np.testing.assert_allclose(radtr, cycles_mean(bpy, result), rtol=0.03)

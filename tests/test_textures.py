@@ -89,3 +89,28 @@ def test_missing_image_falls_back_with_a_warning_naming_it(blend, tmp_path):
     j = job(bpy, 0.1)
     assert any("image 'lost'" in w and "material 'textured'" in w for w in j.stats.warnings)
     assert np.all(np.isfinite(j.leaves.rho))
+
+
+def test_unsupported_nodes_are_named_and_fall_back(blend):
+    bpy = blend
+
+    def mix(nodes):
+        node = nodes.new("ShaderNodeMix")
+        node.data_type = "RGBA"
+        node.name = "Blend Colours"
+        return node.outputs["Result"]
+    plane = plane_with(bpy, mix)
+    glossy = bpy.data.materials.new("shiny")
+    nodes = glossy.node_tree.nodes
+    gloss = nodes.new("ShaderNodeBsdfGlossy")
+    glossy.node_tree.links.new(gloss.outputs["BSDF"], nodes["Material Output"].inputs["Surface"])
+    glossy.diffuse_color = (0.3, 0.4, 0.5, 1)
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0, 0, -1))
+    bpy.context.active_object.data.materials.append(glossy)
+    j = job(bpy, 0.1)
+    text = "\n".join(j.stats.warnings)
+    assert "material 'textured'" in text and "'Base Color'" in text and "does not evaluate" in text
+    assert "material 'shiny'" in text and "Glossy BSDF" in text and "viewport colour" in text
+    shiny = j.leaves.material_index == j.leaves.material_names.index("shiny")
+    np.testing.assert_allclose(j.leaves.rho[shiny], np.tile([0.3, 0.4, 0.5], (shiny.sum(), 1)), rtol=1e-6)
+    assert plane.name in [s.name for s in j.extraction.objects]

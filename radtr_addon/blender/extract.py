@@ -44,6 +44,7 @@ class Extraction:
     corner_color: np.ndarray | None = None  # (t, 3, 3) corner colours (NaN: none)
     textures: dict = field(default_factory=dict)    # material index -> (h, w, 3) image
     attributes: dict = field(default_factory=dict)  # material index -> colour attribute name
+    two_sided: set = field(default_factory=set)     # material indices that emit from both sides
 
 
 def result_objects(bl_scene) -> list:
@@ -142,7 +143,8 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
         scene, uv, colors = scene.subset(keep), uv[keep], colors[keep]
     textures = {i: p.texture for i, p in enumerate(mat_props) if p.texture is not None}
     attributes = {i: p.attribute for i, p in enumerate(mat_props) if p.attribute is not None}
-    return Extraction(scene, list(objects), warnings, uv, colors, textures, attributes)
+    two_sided = {i for i, p in enumerate(mat_props) if p.two_sided}
+    return Extraction(scene, list(objects), warnings, uv, colors, textures, attributes, two_sided)
 
 
 def _clamp_reflectance(rho, names, limit, warnings):

@@ -9,6 +9,9 @@ Read, in order: the node linked to the active Material Output's Surface, when it
 Principled BSDF (Base Color; Emission Color x Emission Strength), a Diffuse BSDF (Color) or
 an Emission shader (Color x Strength, reflectance 0). A linked socket or another shader
 falls back to the material's viewport colour with a warning naming material and node.
+
+Sides: an emitting material emits from both sides, as Cycles renders a mesh light, unless
+its Backface Culling setting is on; then only from the front (the side the normal faces).
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ class SurfaceProps:
     emission: np.ndarray   # (3,) W/m^2
     warnings: list[str]
     texture: np.ndarray | None = None   # (h, w, 3) linear base colour image (``textures``)
+    two_sided: bool = True              # emits from its back too (as Cycles renders a mesh light)
     attribute: str | None = None        # colour attribute name ("" = the mesh's active one)
 
 
@@ -53,8 +57,10 @@ def read_material(mat) -> SurfaceProps:
         texture, attribute, rho = varying
         props = _read_constant(mat, node, rho, warnings, skip=colour_input)
         props.texture, props.attribute = texture, attribute
-        return props
-    return _read_constant(mat, node, fallback, warnings)
+    else:
+        props = _read_constant(mat, node, fallback, warnings)
+    props.two_sided = not mat.use_backface_culling
+    return props
 
 
 def _read_constant(mat, node, fallback, warnings, skip=None) -> SurfaceProps:

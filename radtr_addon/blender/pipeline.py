@@ -16,7 +16,7 @@ import numpy as np
 
 from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
-from ..lights import direct_irradiance, sky_irradiance
+from ..lights import Light, direct_irradiance, sky_irradiance
 from ..reconstruct import VertexRadiosity
 from ..solvers import make_solver
 from ..textures import varying_reflectance
@@ -108,6 +108,7 @@ class SolveJob:
     def _add_lights(self, bl_scene, view_layer):
         """Light objects' and the World's direct light, reflected once, joins the emission (``lights``)."""
         lights, warnings = scene_lights(bl_scene, view_layer)
+        lights += self._emitter_backs()
         sky, sky_warnings = world_radiance(bl_scene)
         warnings += sky_warnings
         self.lights = lights
@@ -125,6 +126,14 @@ class SolveJob:
         for w in warnings:
             self.log(f"RadTR warning: {w}")
         self.stats.warnings += warnings
+
+    def _emitter_backs(self) -> list:
+        """The backs of emitting input triangles with two-sided materials, as area lights."""
+        base = self.extraction.scene
+        two = np.isin(base.material_index, list(self.extraction.two_sided))
+        ids = np.flatnonzero(two & (base.emission.max(axis=1) > 0))
+        tris = base.vertices[base.triangles[ids]]
+        return [Light.back_of(f"back of {base.patch_label(i)}", t, base.emission[i]) for i, t in zip(ids, tris)]
 
     @contextmanager
     def _stage(self, name):
