@@ -1,6 +1,6 @@
 """RadTR settings stored on the Scene as ``scene.radtr``."""
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from .radtr_addon.blender.pipeline import Settings
 
@@ -47,7 +47,11 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         items=[("shooting", "Shooting", "Progressive refinement: brightest patch first, any scene size"),
                ("jacobi", "Jacobi", "Gathering sweeps, every patch from the last sweep's light"),
                ("gauss_seidel", "Gauss-Seidel", "Gathering sweeps using light updated in the same sweep"),
-               ("direct", "Direct", "Sparse/dense LU of the whole system: exact, for small scenes")])
+               ("direct", "Direct", "Sparse/dense LU of the whole system: exact, for small scenes"),
+               ("user", "User", "Your own Python function: module:function or file.py:function")])
+    user_solver: StringProperty(
+        name="Function", default=_D.user_solver,
+        description="module:function or path/to/file.py:function called as f(F=, E=, rho=, areas=) -> B")
     tolerance: FloatProperty(
         name="Tolerance", default=_D.tolerance, min=1e-12, max=0.5, precision=6,
         description="Stop when the residual (unshot) power falls below this fraction of the emitted power")
@@ -93,7 +97,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         return Settings(max_area=self.max_area, levels=self.levels,
                         method=self.method, resolution=self.resolution - self.resolution % 2,
                         rotate=self.rotate, split=self.split, split_level=self.split_level, rays=self.rays,
-                        solver=self.solver, tolerance=self.tolerance, max_iterations=self.max_iterations,
+                        solver=self.solver, user_solver=self.user_solver, tolerance=self.tolerance,
+                        max_iterations=self.max_iterations,
                         precision=self.precision, ambient=self.ambient, gather_rays=self.gather_rays,
                         max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode)
 

@@ -23,6 +23,8 @@ class RADTR_PT_main(bpy.types.Panel):
         col.prop(s, "solver")
         if s.solver == "shooting":
             col.prop(s, "ambient")
+        elif s.solver == "user":
+            col.prop(s, "user_solver")
         col.prop(s, "precision")
         col.prop(s, "tolerance")
         col.prop(s, "max_iterations")

@@ -65,7 +65,9 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--split", default=d.split, choices=("none", "uniform", "adaptive"), help="paraboloid split")
     p.add_argument("--split-level", type=int, default=d.split_level, help="paraboloid uniform split N")
     p.add_argument("--rays", type=int, default=d.rays, help="embree rays per patch")
-    p.add_argument("--solver", default=d.solver, choices=SOLVERS, help="radiosity solver")
+    p.add_argument("--solver", default=d.solver, choices=(*SOLVERS, "user"), help="radiosity solver")
+    p.add_argument("--user-solver", default=d.user_solver,
+                   help="with --solver user: module:function or file.py:function (see examples/)")
     p.add_argument("--tolerance", type=float, default=d.tolerance, help="residual/emitted power to stop at")
     p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots or sweeps")
     p.add_argument("--precision", default=d.precision, choices=("float32", "float64"), help="accumulation")
@@ -81,7 +83,8 @@ def settings_from(args):
 
     return Settings(max_area=args.max_area, levels=args.levels, method=args.method, resolution=args.resolution,
                     rotate=args.rotate, split=args.split, split_level=args.split_level, rays=args.rays,
-                    solver=args.solver, tolerance=args.tolerance, max_iterations=args.iterations,
+                    solver=args.solver, user_solver=args.user_solver, tolerance=args.tolerance,
+                    max_iterations=args.iterations,
                     precision=args.precision, ambient=args.ambient, gather_rays=args.gather_rays,
                     max_reflectance=args.max_reflectance, exposure=args.exposure)
 

@@ -40,7 +40,8 @@ class Settings:
     split: str = "adaptive"        # paraboloid: none | uniform | adaptive
     split_level: int = 4           # paraboloid uniform split N
     rays: int = 1024               # embree rays per row
-    solver: str = "shooting"       # shooting | jacobi | gauss_seidel | direct
+    solver: str = "shooting"       # shooting | jacobi | gauss_seidel | direct | user
+    user_solver: str = ""          # solver "user": module:function or file.py:function
     tolerance: float = 1e-3        # residual (unshot) power / emitted power
     max_iterations: int = 20_000   # shots or sweeps
     precision: str = "float64"     # accumulation: float32 | float64
@@ -101,7 +102,8 @@ class SolveJob:
         self.stats.warnings += self.rows.warnings
         with self._stage("solver_init"):
             self.solver = make_solver(settings.solver, self.leaves, self.rows, tol=settings.tolerance,
-                                      max_iterations=settings.max_iterations, dtype=settings.precision)
+                                      max_iterations=settings.max_iterations, dtype=settings.precision,
+                                      user=settings.user_solver)
         self.result = None
         self.objects = []                       # the result objects, once written
 

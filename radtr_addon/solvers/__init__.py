@@ -17,20 +17,24 @@ from .gathering import GatheringSolver
 from .result import SolveResult
 from .shooting import ShootingSolver
 
-#: Solver names, as the CLI, the Scene settings and the benchmarks spell them.
+#: Solver names, as the CLI, the Scene settings and the benchmarks spell them ("user": ``user``).
 SOLVERS = ("shooting", "jacobi", "gauss_seidel", "direct")
 
 
 def make_solver(method: str, scene, rows, *, tol: float = 1e-3, max_iterations: int = 10_000,
-                dtype=np.float64) -> Solver:
+                dtype=np.float64, user: str = "") -> Solver:
     kw = dict(tol=tol, max_iterations=max_iterations, dtype=dtype)
+    if method == "user":
+        from .user import UserSolver
+
+        return UserSolver(scene, rows, spec=user, **kw)
     if method == "shooting":
         return ShootingSolver(scene, rows, **kw)
     if method in ("jacobi", "gauss_seidel"):
         return GatheringSolver(scene, rows, gauss_seidel=method == "gauss_seidel", **kw)
     if method == "direct":
         return DirectSolver(scene, rows, **kw)
-    raise SettingsError(f"solver must be one of {', '.join(SOLVERS)}, got '{method}'")
+    raise SettingsError(f"solver must be one of {', '.join(SOLVERS)} or user, got '{method}'")
 
 
 def solve(method: str, scene, rows, *, progress: Callable[[Solver], bool | None] | None = None,

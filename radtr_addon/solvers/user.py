@@ -1,0 +1,123 @@
+"""Your own solver in the loop: a Python function that receives the matrices and E, returns B.
+
+``spec`` names it as ``package.module:function`` (importable) or ``path/to/file.py:function``.
+It is called once, after the form factors are assembled, as
+
+    function(F=F, E=E, rho=rho, areas=areas) -> B
+
+with F the sparse (CSR) form factors (row i: what patch i sees), E and rho (n, 3) and the
+areas (n,); RadTR's own solvers solve B = E + R K B with K = diag(1/A) F^T diag(A) (see
+``base``). B must be (n, 3) (or (n,) for grey) and finite. Anything else, or an exception
+in the user's code, is reported as a ``UserSolverError`` naming the function, and nothing
+in the scene changes. ``examples/direct_solver.py`` is a working example.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import RadTRError
+from .base import Solver
+from .matrix import Assembly, transport
+
+
+class UserSolverError(RadTRError):
+    """The user's solver could not be loaded, raised, or returned something unusable."""
+
+
+def load_user_solver(spec: str):
+    """The function ``spec`` names."""
+    module_name, sep, func = spec.rpartition(":")
+    if not sep or not module_name or not func:
+        raise UserSolverError(f"user solver '{spec}': write it as module:function or file.py:function")
+    try:
+        if module_name.endswith(".py"):
+            path = Path(module_name)
+            if not path.is_file():
+                raise UserSolverError(f"user solver '{spec}': no such file {path}")
+            loader = importlib.util.spec_from_file_location(f"radtr_user_{path.stem}", path)
+            module = importlib.util.module_from_spec(loader)
+            loader.loader.exec_module(module)
+        else:
+            module = importlib.import_module(module_name)
+    except UserSolverError:
+        raise
+    except Exception as exc:
+        raise UserSolverError(f"user solver '{spec}': loading it raised {_describe(exc)}") from None
+    fn = getattr(module, func, None)
+    if not callable(fn):
+        raise UserSolverError(f"user solver '{spec}': the module has no function '{func}'")
+    return fn
+
+
+def _describe(exc: BaseException) -> str:
+    """'Type: message (file:line)' of the innermost frame, for a one-line report."""
+    tb = traceback.extract_tb(exc.__traceback__)
+    where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
+    return f"{type(exc).__name__}: {exc}{where}"
+
+
+def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
+    """B (n, 3) from the user's function, checked."""
+    try:
+        B = fn(**problem)
+    except Exception as exc:
+        raise UserSolverError(f"user solver '{spec}' raised {_describe(exc)}") from None
+    try:
+        B = np.asarray(B, dtype=float)
+    except (TypeError, ValueError):
+        raise UserSolverError(f"user solver '{spec}' returned {type(B).__name__}, not an array") from None
+    if B.shape == (n,):
+        B = np.repeat(B[:, None], 3, axis=1)
+    if B.shape != (n, 3):
+        raise UserSolverError(f"user solver '{spec}' returned shape {B.shape}; expected ({n}, 3)")
+    bad = ~np.isfinite(B).all(axis=1)
+    if bad.any():
+        raise UserSolverError(f"user solver '{spec}' returned NaN or infinity at patch {int(np.flatnonzero(bad)[0])} "
+                              f"({int(bad.sum())} patches in all)")
+    return B
+
+
+class UserSolver(Solver):
+    """Assembles F a batch of rows per step, then calls the user's function in one step."""
+
+    name = "user"
+
+    def __init__(self, scene, rows, *, spec: str, **kw):
+        super().__init__(scene, rows, **kw)
+        self.spec = spec
+        self.function = load_user_solver(spec)
+        self._assembly = Assembly(rows, scene.n)
+        self.B = np.zeros((scene.n, 3))
+        self.H = np.zeros((scene.n, 3))
+        self._record(self.emitted)
+
+    @property
+    def phase(self) -> str:
+        return f"assembling form factors: {self._assembly.cursor:,} of {self.scene.n:,} rows"
+
+    def _advance(self, t0: float):
+        F = self._assembly.step()
+        if F is None:
+            return
+        s = self.scene
+        B = call_user_solver(self.function, self.spec, s.n, F=F, E=s.emission.copy(), rho=s.rho.copy(),
+                             areas=s.areas.copy())
+        self.B = B / self.scale
+        self.H = transport(F, self.area) @ self.B
+        self.iterations = 1
+        self._residual = self.E + self.rho * self.H - self.B
+        self._record((np.abs(self._residual) * self.area[:, None]).sum(axis=0), time.perf_counter() - t0)
+        self.converged = True
+
+    def _books(self):
+        out = self.B * self.area[:, None]
+        losses = self._assembly.losses
+        unshot = (self._residual * self.area[:, None]).sum(axis=0) if self.iterations else self.emitted
+        return (self.B, self.H, (out * losses.escaped[:, None]).sum(axis=0),
+                (out * losses.blocked[:, None]).sum(axis=0), unshot)
