@@ -153,6 +153,32 @@ def cmd_flashlight(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    import bpy
+
+    from .blender.pipeline import SolveJob
+    from .exchange import arrays_of, export
+    from .solvers.matrix import Assembly
+
+    for w in open_scene(args.scene):
+        print(f"RadTR warning: {w}")
+    ctx = bpy.context
+    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings_from(args))
+    assembly = Assembly(job.rows, job.leaves.n)
+    F = None
+    while F is None:
+        F = assembly.step()
+    U = V = None
+    if args.level is not None:
+        from .lowrank import build
+
+        lowrank = build(job.hierarchy, job.rows, args.level)
+        U, V = lowrank.U, lowrank.V
+    for path in export(args.out, arrays_of(job.leaves, F, U, V)):
+        print(f"RadTR: wrote {path}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import run_benchmark
 
@@ -178,6 +204,12 @@ def main(argv=None) -> int:
     f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy or opencl")
     _settings_args(f)
     f.set_defaults(func=cmd_flashlight)
+    e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V)")
+    e.add_argument("scene", help=".blend, .obj or bundled scene name")
+    e.add_argument("--out", required=True, help="file.npz, file.mat, or a prefix for the seed's .dat files")
+    e.add_argument("--level", type=int, help="also the low-rank U and V of this hierarchy level")
+    _settings_args(e)
+    e.set_defaults(func=cmd_export)
     b = sub.add_parser("bench", help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")
     b.add_argument("--quick", action="store_true", help="smaller sizes, for a quick look")

@@ -86,3 +86,21 @@ def test_flashlight_poses_render_pngs_and_bad_poses_are_clear(tmp_path):
     poses.write_text('[{"position": [0, 0, 0]}]')
     bad = run("flashlight", "cornell_box", "--poses", str(poses), "--out-dir", str(tmp_path / "f"), *args)
     assert bad.returncode == 2 and "poses.json" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_export_writes_what_other_programs_read(tmp_path):
+    from radtr_addon.exchange import load, load_text
+
+    args = ("--max-area", "0.01", "--levels", "2", "--method", "embree", "--rays", "64")
+    out = run("export", "cornell_box", "--out", str(tmp_path / "box.npz"), "--level", "1", *args)
+    assert out.returncode == 0, out.stderr[-2000:]
+    a = load(tmp_path / "box.npz")
+    n = len(a["areas"])
+    assert a["F"].shape == (n, n) and a["U"].shape[0] == n and a["V"].shape[0] == n
+    sums = np.asarray(a["F"].sum(axis=1)).ravel()
+    assert sums.max() <= 1 + 1e-12 and sums.mean() > 0.5            # what each patch sees, the rest escapes
+    assert a["emission"].max() > 0 and a["triangles"].shape == (n, 9)
+    out = run("export", "cornell_box", "--out", str(tmp_path / "box"), *args)
+    assert out.returncode == 0 and "box_ffs.dat" in out.stdout
+    t = load_text(tmp_path / "box")
+    assert abs(t["F"] - a["F"]).max() < 1e-15 and "U" not in t
