@@ -179,6 +179,24 @@ def cmd_export(args) -> int:
     return 0
 
 
+def cmd_sequence(args) -> int:
+    import bpy
+
+    from .blender.pipeline import solve
+    from .blender.sequence import render_sequence, watch
+
+    for w in open_scene(args.scene):
+        print(f"RadTR warning: {w}")
+    job = solve(bpy.context, settings_from(args))
+    if args.command == "watch":
+        paths = watch(job, args.file, args.out_dir, args.polls, args.interval)
+    else:
+        paths = render_sequence(job, args.prefix, args.first, args.last, args.out_dir, args.suffix)
+    for path in paths:
+        print(f"RadTR: rendered {path}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import run_benchmark
 
@@ -210,6 +228,23 @@ def main(argv=None) -> int:
     e.add_argument("--level", type=int, help="also the low-rank U and V of this hierarchy level")
     _settings_args(e)
     e.set_defaults(func=cmd_export)
+    q = sub.add_parser("sequence", help="solve and render emission files <prefix><i><suffix>, i = from..to")
+    q.add_argument("scene", help=".blend, .obj or bundled scene name")
+    q.add_argument("--prefix", required=True)
+    q.add_argument("--suffix", default="", help="e.g. .dat")
+    q.add_argument("--from", dest="first", type=int, default=1)
+    q.add_argument("--to", dest="last", type=int, required=True)
+    q.add_argument("--out-dir", default="out/sequence")
+    _settings_args(q)
+    q.set_defaults(func=cmd_sequence)
+    w = sub.add_parser("watch", help="solve and render an emission file each time another program rewrites it")
+    w.add_argument("scene", help=".blend, .obj or bundled scene name")
+    w.add_argument("--file", required=True)
+    w.add_argument("--out-dir", default="out/watch")
+    w.add_argument("--polls", type=int, default=1_000_000, help="how many times to look (Ctrl+C stops)")
+    w.add_argument("--interval", type=float, default=0.5, help="seconds between looks")
+    _settings_args(w)
+    w.set_defaults(func=cmd_sequence)
     b = sub.add_parser("bench", help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")
     b.add_argument("--quick", action="store_true", help="smaller sizes, for a quick look")

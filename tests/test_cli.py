@@ -104,3 +104,20 @@ def test_export_writes_what_other_programs_read(tmp_path):
     assert out.returncode == 0 and "box_ffs.dat" in out.stdout
     t = load_text(tmp_path / "box")
     assert abs(t["F"] - a["F"]).max() < 1e-15 and "U" not in t
+
+
+def test_sequence_from_exported_emission(tmp_path):
+    args = ("--max-area", "0.01", "--method", "embree", "--rays", "32", "--tolerance", "0.01")
+    out = run("export", "cornell_box", "--out", str(tmp_path / "box"), *args)
+    assert out.returncode == 0, out.stderr[-2000:]
+    es = np.loadtxt(tmp_path / "box_es.dat")
+    for i in (1, 2):
+        np.savetxt(tmp_path / f"em{i}.dat", es * i)
+    out = run("sequence", "cornell_box", "--prefix", str(tmp_path / "em"), "--suffix", ".dat", "--to", "2",
+              "--out-dir", str(tmp_path / "seq"), *args)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert sorted(p.name for p in (tmp_path / "seq").glob("*.png")) == ["frame_0001.png", "frame_0002.png"]
+    np.savetxt(tmp_path / "em3.dat", es[:-1])
+    bad = run("sequence", "cornell_box", "--prefix", str(tmp_path / "em"), "--suffix", ".dat", "--from", "3",
+              "--to", "3", "--out-dir", str(tmp_path / "seq"), *args)
+    assert bad.returncode == 2 and "em3.dat" in bad.stderr and "rows" in bad.stderr

@@ -1,0 +1,83 @@
+"""Emission vectors from files, solved and rendered: numbered sequences and a watched file.
+
+A vector file holds one emission per patch of the solve it was written for (same scene and
+settings, hence the same patches: ``exchange``), and is checked by ``exchange.load_vector``.
+Each is solved with the job's solver and form factors (rows computed once, then cached), shown
+in the result meshes and rendered to a PNG; the meshes' colours are restored afterwards.
+``watch`` reloads a file whenever another program rewrites it: a new version is read only when
+its size and time stamp have stayed the same for one polling interval and it parses whole
+with the right length, so a half-written file is never loaded.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputFileError
+from ..exchange import load_vector
+from ..solvers import make_solver
+from .flashlight import LiveMeshes
+from .render import render_png
+
+
+def solve_with_emission(job, E: np.ndarray) -> np.ndarray:
+    """B for emission E (n, 3) on the job's patches, with its solver settings and cached rows."""
+    leaves = job.leaves.subset(np.ones(job.leaves.n, dtype=bool))
+    leaves.emission = np.asarray(E, dtype=float)
+    s = job.settings
+    solver = make_solver(s.solver, leaves, job.rows, tol=s.tolerance, max_iterations=s.max_iterations,
+                         dtype=s.precision, user=s.user_solver)
+    while not solver.step(64):
+        pass
+    return solver.result().B
+
+
+def _show(job, meshes, E, png: Path) -> Path:
+    meshes.write(solve_with_emission(job, E))
+    render_png(job.bl_scene, str(png.resolve()))
+    return png
+
+
+def render_sequence(job, prefix: str, first: int, last: int, out_dir, suffix: str = "") -> list[Path]:
+    """One PNG per file ``<prefix><i><suffix>``, i = first..last; every file is checked first."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    vectors = [(i, load_vector(f"{prefix}{i}{suffix}", job.leaves.n)) for i in range(first, last + 1)]
+    meshes = LiveMeshes(job.objects, job.leaves)
+    saved = meshes.snapshot()
+    try:
+        return [_show(job, meshes, E, out_dir / f"frame_{i:04d}.png") for i, E in vectors]
+    finally:
+        meshes.restore(saved)
+
+
+def watch(job, path, out_dir, polls: int, interval: float = 0.5, sleep=time.sleep, log=print) -> list[Path]:
+    """Poll ``path`` ``polls`` times; each complete new version gives ``watch_NNNN.png``."""
+    path, out_dir = Path(path), Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    meshes = LiveMeshes(job.objects, job.leaves)
+    saved = meshes.snapshot()
+    shown, seen, previous = [], None, None
+    try:
+        for _ in range(polls):
+            try:
+                st = path.stat()
+                signature = (st.st_mtime_ns, st.st_size)
+            except FileNotFoundError:
+                signature = None
+            if signature is not None and signature != seen and signature == previous:
+                try:
+                    E = load_vector(path, job.leaves.n)
+                except InputFileError as exc:
+                    log(f"RadTR: {exc}; waiting for a complete file")
+                else:
+                    shown.append(_show(job, meshes, E, out_dir / f"watch_{len(shown):04d}.png"))
+                    log(f"RadTR: {path.name} changed; rendered {shown[-1]}")
+                    seen = signature
+            previous = signature
+            sleep(interval)
+    finally:
+        meshes.restore(saved)
+    return shown
