@@ -81,6 +81,17 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Back-End", default="numpy",
         items=[("numpy", "NumPy", "BLAS product on the CPU"),
                ("opencl", "OpenCL", "PyOpenCL: a GPU where present, PoCL on the CPU otherwise")])
+    sky: EnumProperty(
+        name="Sky", default=_D.sky,
+        items=[("none", "None", "No research sky (the World still lights the scene)"),
+               ("uniform", "Uniform", "A uniform sky dome, through sky form factors"),
+               ("cie", "CIE Overcast", "L = Lz (1 + 2 cos theta) / 3, through sky form factors")])
+    sky_radiance: FloatProperty(
+        name="Sky Radiance", default=_D.sky_radiance, min=0.0,
+        description="Uniform sky radiance, or the CIE sky's zenith radiance (W/m^2/sr)")
+    sky_step: FloatProperty(
+        name="Dome Step", default=_D.sky_step, min=0.5, max=90.0,
+        description="Degrees between dome points in azimuth and altitude: smaller is more exact and slower")
     max_reflectance: FloatProperty(
         name="Max Reflectance", default=_D.max_reflectance, min=0.0, max=1.0,
         description="Reflectances above this are clamped, with a warning naming the material; 1 is "
@@ -100,7 +111,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                         solver=self.solver, user_solver=self.user_solver, tolerance=self.tolerance,
                         max_iterations=self.max_iterations,
                         precision=self.precision, ambient=self.ambient, gather_rays=self.gather_rays,
-                        max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode)
+                        max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode,
+                        sky=self.sky, sky_radiance=self.sky_radiance, sky_step=self.sky_step)
 
 
 _register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_settings,))

@@ -41,6 +41,10 @@ class RADTR_PT_main(bpy.types.Panel):
             if s.split == "uniform":
                 col.prop(s, "split_level")
         col.prop(s, "gather_rays")
+        col.prop(s, "sky")
+        if s.sky != "none":
+            col.prop(s, "sky_radiance")
+            col.prop(s, "sky_step")
         col.prop(s, "max_reflectance")
         col.prop(s, "mode", expand=True)
         row = col.row(align=True)

@@ -74,6 +74,9 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--ambient", action="store_true", help="shooting: show unshot light as an ambient term")
     p.add_argument("--gather-rays", type=int, default=d.gather_rays,
                    help="final gather of the vertex colours with this many rays per vertex (0: patch mean)")
+    p.add_argument("--sky", default=d.sky, choices=("none", "uniform", "cie"), help="apply a sky (sky form factors)")
+    p.add_argument("--sky-radiance", type=float, default=d.sky_radiance, help="uniform / CIE zenith radiance")
+    p.add_argument("--sky-step", type=float, default=d.sky_step, help="dome step in degrees (alpha = beta)")
     p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
     p.add_argument("--exposure", type=float, default=d.exposure)
 
@@ -86,7 +89,8 @@ def settings_from(args):
                     solver=args.solver, user_solver=args.user_solver, tolerance=args.tolerance,
                     max_iterations=args.iterations,
                     precision=args.precision, ambient=args.ambient, gather_rays=args.gather_rays,
-                    max_reflectance=args.max_reflectance, exposure=args.exposure)
+                    max_reflectance=args.max_reflectance, exposure=args.exposure, sky=args.sky,
+                    sky_radiance=args.sky_radiance, sky_step=args.sky_step)
 
 
 def cmd_solve(args) -> int:

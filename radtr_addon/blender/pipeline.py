@@ -47,6 +47,10 @@ class Settings:
     precision: str = "float64"     # accumulation: float32 | float64
     ambient: bool = False          # shooting: show unshot light as Cohen's ambient term
     gather_rays: int = 0           # vertex radiosity by a final gather of this many rays (0: patch mean)
+    sky: str = "none"              # apply a sky through sky form factors: none | uniform | cie
+    sky_radiance: float = 1.0      # uniform radiance, or the CIE sky's zenith radiance (W/m^2/sr)
+    sky_step: float = 10.0         # dome points every this many degrees of azimuth and altitude
+    sky_resolution: int = 256      # parallel rays across the scene per dome point
     max_reflectance: float = 0.95
     exposure: float = 1.0
     mode: str = "COPY"             # or "REPLACE"
@@ -123,11 +127,25 @@ class SolveJob:
                                 f"a brighter light dominates")
         if sky is not None:
             H += sky_irradiance(self.leaves, sky)
-        if lights or sky is not None:
+        if self.settings.sky != "none":
+            H += self._apply_sky()
+        if lights or sky is not None or self.settings.sky != "none":
             self.leaves.emission = self.leaves.emission + self.leaves.rho * H
         for w in warnings:
             self.log(f"RadTR warning: {w}")
         self.stats.warnings += warnings
+
+    def _apply_sky(self) -> np.ndarray:
+        """Irradiance from the research sky (``sky``): uniform or CIE overcast, by sky form factors."""
+        from ..errors import SettingsError
+        from ..sky import cie_overcast, sky_factors, uniform_sky
+
+        s = self.settings
+        models = {"uniform": uniform_sky, "cie": cie_overcast}
+        if s.sky not in models:
+            raise SettingsError(f"sky must be none, uniform or cie, got '{s.sky}'")
+        self.sky = sky_factors(self.leaves, s.sky_step, s.sky_step, s.sky_resolution)
+        return self.sky.irradiance(models[s.sky](self.sky, s.sky_radiance))
 
     def _emitter_backs(self) -> list:
         """The backs of emitting input triangles with two-sided materials, as area lights."""
