@@ -7,10 +7,10 @@ from .radtr_addon.blender.pipeline import Settings
 _D = Settings()
 
 
-def _exposure_changed(self, context):
-    from .radtr_addon.blender.write import set_exposure
+def _display_changed(self, context):
+    from .radtr_addon.blender.write import set_display
 
-    set_exposure(self.exposure)
+    set_display(context.scene, self.display, self.exposure)
 
 
 class RADTR_PG_settings(bpy.types.PropertyGroup):
@@ -97,8 +97,21 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         description="Reflectances above this are clamped, with a warning naming the material; 1 is "
                     "accepted where light can escape")
     exposure: FloatProperty(
-        name="Exposure", default=_D.exposure, min=0.0, soft_max=16.0, update=_exposure_changed,
+        name="Exposure", default=_D.exposure, min=0.0, soft_max=16.0, update=_display_changed,
         description="Brightness factor of every RadTR display (radiance shown = exposure x B / pi)")
+    display: EnumProperty(
+        name="Display", default="interpolated", update=_display_changed,
+        items=[("interpolated", "Interpolated", "Radiosity interpolated over the vertices"),
+               ("flat", "Flat", "Each patch's own radiosity"),
+               ("emission", "Emission", "What each patch emits"),
+               ("patch_id", "Patch IDs", "Each patch in its id colour code (i + 1 as bytes)"),
+               ("outlines", "Outlines", "Interpolated radiosity with the patch edges drawn")])
+    view_patch: IntProperty(
+        name="Patch", default=0, min=0, description="Patch index for the debug view and View from Patch")
+    view_kind: EnumProperty(
+        name="View", default="paraboloid",
+        items=[("paraboloid", "Paraboloid", "The hemisphere map the paraboloid method draws"),
+               ("hemicube", "Hemicube", "The unfolded hemicube")])
     mode: EnumProperty(
         name="Result", default=_D.mode,
         items=[("COPY", "Copies", "Subdivided copies in a 'RadTR' collection; sources hidden"),

@@ -240,3 +240,33 @@ def test_vertex_gather_is_closer_to_cycles_than_the_patch_mean(cornell):
     err_mean = np.sqrt(np.mean((mean - cycles)[keep] ** 2))
     err_gather = np.sqrt(np.mean((gathered - cycles)[keep] ** 2))
     assert err_gather < 0.7 * err_mean, (err_gather, err_mean)      # measured 0.0134 against 0.0244
+
+
+def test_display_modes_and_patch_view_image(addon, cornell):
+    bpy = cornell
+    small(bpy)
+    bpy.ops.radtr.solve()
+    s = bpy.context.scene.radtr
+    mat = bpy.data.materials["RadTR Radiosity"]
+    attr = next(n for n in mat.node_tree.nodes if n.type == "ATTRIBUTE")
+    floor = bpy.data.objects["floor_radtr"]
+    for mode, name in (("flat", "radtr_patch"), ("emission", "radtr_emission"), ("patch_id", "radtr_patch_id"),
+                       ("outlines", "radtr_radiosity")):
+        s.display = mode
+        assert attr.attribute_name == name and floor.show_wire == (mode == "outlines")
+        strength = mat.node_tree.nodes["RadTR Emission"].inputs["Strength"].default_value
+        assert strength == pytest.approx(1.0 if mode == "patch_id" else s.exposure / math.pi)
+    # the id colour code decodes back to the patch index
+    mesh = floor.data
+    ids = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.attributes["radtr_patch_index"].data.foreach_get("value", ids)
+    code = np.empty(len(mesh.polygons) * 4, dtype=np.float32)
+    mesh.attributes["radtr_patch_id"].data.foreach_get("color", code)
+    rgb = np.rint(code.reshape(-1, 4)[:, :3] * 255).astype(int)
+    np.testing.assert_array_equal(rgb[:, 0] + 256 * rgb[:, 1] + 65536 * rgb[:, 2] - 1, ids)
+    s.view_patch, s.view_kind = int(ids[0]), "hemicube"
+    assert bpy.ops.radtr.patch_view() == {"FINISHED"}
+    assert tuple(bpy.data.images["RadTR Patch View"].size) == (256, 256)
+    s.view_patch = 10**6
+    with pytest.raises(RuntimeError, match="patch 1000000 does not exist"):
+        bpy.ops.radtr.patch_view()

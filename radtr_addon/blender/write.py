@@ -24,10 +24,13 @@ DISPLAY_MATERIAL = "RadTR Radiosity"
 EMISSION_NODE = "RadTR Emission"
 
 
-def build_mesh(name: str, vertices: np.ndarray, part: MeshPart, B: np.ndarray, point: np.ndarray):
-    """A new mesh datablock of ``part``'s triangles, with patch radiosity ``B`` (t, 3) and
-    vertex radiosity ``point`` (v, 3) as RadTR's attributes."""
+def build_mesh(name: str, vertices: np.ndarray, part: MeshPart, B: np.ndarray, point: np.ndarray,
+               emission: np.ndarray | None = None):
+    """A new mesh datablock of ``part``'s triangles, with patch radiosity ``B`` (t, 3), vertex
+    radiosity ``point`` (v, 3), emission (t, 3) and the patch-id colour code as RadTR's attributes."""
     import bpy
+
+    from ..views import id_colors
 
     local = part.local
     mesh = bpy.data.meshes.new(name)
@@ -42,6 +45,10 @@ def build_mesh(name: str, vertices: np.ndarray, part: MeshPart, B: np.ndarray, p
     mesh.attributes.new("radtr_patch", "FLOAT_COLOR", "FACE").data.foreach_set("color", rgba.ravel())
     mesh.attributes.new("radtr_patch_index", "INT", "FACE").data.foreach_set(
         "value", part.patches.astype(np.int32))
+    E = np.zeros_like(B) if emission is None else emission
+    for attr, values in (("radtr_emission", E), ("radtr_patch_id", id_colors(part.patches))):
+        rgba = np.column_stack([values, np.ones(len(values))]).astype(np.float32)
+        mesh.attributes.new(attr, "FLOAT_COLOR", "FACE").data.foreach_set("color", rgba.ravel())
     prgba = np.column_stack([point, np.ones(len(point))]).astype(np.float32)
     attr = mesh.color_attributes.new("radtr_radiosity", "FLOAT_COLOR", "POINT")
     attr.data.foreach_set("color", prgba.ravel())
@@ -74,13 +81,38 @@ def display_material(exposure: float = 1.0):
     return mat
 
 
-def set_exposure(exposure: float):
-    """Scale every RadTR display (seed F12): displayed radiance = exposure x B / pi."""
+#: Display modes: the attribute the display material shows (F16), and whether exposure applies.
+DISPLAYS = {"interpolated": ("radtr_radiosity", True), "flat": ("radtr_patch", True),
+            "emission": ("radtr_emission", True), "patch_id": ("radtr_patch_id", False),
+            "outlines": ("radtr_radiosity", True)}
+
+
+def set_exposure(exposure: float, display: str = "interpolated"):
+    """Scale every RadTR display (seed F12): displayed radiance = exposure x B / pi; the patch-id
+    colour code is shown as it is."""
     import bpy
 
     mat = bpy.data.materials.get(DISPLAY_MATERIAL)
     if mat and mat.node_tree and EMISSION_NODE in mat.node_tree.nodes:
-        mat.node_tree.nodes[EMISSION_NODE].inputs["Strength"].default_value = exposure / math.pi
+        scaled = DISPLAYS.get(display, DISPLAYS["interpolated"])[1]
+        mat.node_tree.nodes[EMISSION_NODE].inputs["Strength"].default_value = exposure / math.pi if scaled else 1.0
+
+
+def set_display(bl_scene, display: str, exposure: float):
+    """Show ``display`` (see DISPLAYS) on every result mesh: the material's attribute, the
+    exposure, and for "outlines" the patch edges drawn over the result objects."""
+    import bpy
+
+    mat = bpy.data.materials.get(DISPLAY_MATERIAL)
+    if mat is None or mat.node_tree is None:
+        return
+    attribute = next((n for n in mat.node_tree.nodes if n.type == "ATTRIBUTE"), None)
+    if attribute is not None:
+        attribute.attribute_name = DISPLAYS[display][0]
+    set_exposure(exposure, display)
+    coll = bpy_collection(bl_scene)
+    for obj in (coll.objects if coll else []):
+        obj.show_wire = display == "outlines"
 
 
 def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", vertex_values=None) -> list:
@@ -102,7 +134,8 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", ve
             if len(sel) == 0:
                 continue
             part = mesh_part(leaves, sel)
-            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, part, B[sel], vertex_values(part))
+            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, part, B[sel], vertex_values(part),
+                              leaves.emission[sel])
             meshes.append((obj, mesh))
         material = display_material(exposure) if mode == "COPY" else None
     except Exception:
