@@ -80,7 +80,11 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     lowrank_backend: EnumProperty(
         name="Back-End", default="numpy",
         items=[("numpy", "NumPy", "BLAS product on the CPU"),
-               ("opencl", "OpenCL", "PyOpenCL: a GPU where present, PoCL on the CPU otherwise")])
+               ("opencl", "OpenCL", "PyOpenCL: a GPU where present, PoCL on the CPU otherwise"),
+               ("user", "User", "Your own function every frame: f(E=, U=, V=, rho=) -> B")])
+    lowrank_user: StringProperty(
+        name="Frame Function", default="",
+        description="module:function or file.py:function the User back-end calls every frame")
     sky: EnumProperty(
         name="Sky", default=_D.sky,
         items=[("none", "None", "No research sky (the World still lights the scene)"),

@@ -33,7 +33,7 @@ class RADTR_OT_flashlight(bpy.types.Operator):
         s = context.scene.radtr
         try:
             light, meshes, warnings, hit = flashlight_for(running["last"], s.lowrank_level, s.lowrank_backend,
-                                                          refine_to=s.lowrank_refine)
+                                                          refine_to=s.lowrank_refine, user=s.lowrank_user)
         except RadTRError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -64,6 +64,8 @@ class RADTR_PT_main(bpy.types.Panel):
         col.prop(s, "lowrank_level")
         col.prop(s, "lowrank_refine")
         col.prop(s, "lowrank_backend")
+        if s.lowrank_backend == "user":
+            col.prop(s, "lowrank_user")
         col.operator("radtr.flashlight", icon="LIGHT_SPOT")
         col.separator()
         col.label(text="Views")

@@ -147,7 +147,8 @@ def cmd_flashlight(args) -> int:
         print(f"RadTR warning: {w}")
     job = solve(bpy.context, settings_from(args))
     light, meshes, warnings, hit = flashlight_for(job, args.level, args.backend,
-                                                  Path(args.out_dir) / "lowrank-cache", args.refine_to)
+                                                  Path(args.out_dir) / "lowrank-cache", args.refine_to,
+                                                  args.user_frame)
     for w in warnings:
         print(f"RadTR warning: {w}")
     print(f"RadTR: low-rank {light.lowrank.k:,} clusters "
@@ -223,7 +224,8 @@ def main(argv=None) -> int:
     f.add_argument("--level", type=int, default=1, help="hierarchy level of the low-rank clusters")
     f.add_argument("--refine-to", type=int, default=0,
                    help="refine the level's clusters where the light is until there are this many")
-    f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy or opencl")
+    f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy, opencl or user")
+    f.add_argument("--user-frame", default="", help="with --backend user: module:function called every frame")
     _settings_args(f)
     f.set_defaults(func=cmd_flashlight)
     e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V)")

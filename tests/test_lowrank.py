@@ -146,3 +146,19 @@ def test_flashlight_frames_colour_and_mono():
     fl.set_mono(True)
     grey, _ = fl.frame(spot)
     assert np.all(grey[:, 0] == grey[:, 1]) and np.all(grey[:, 1] == grey[:, 2])
+
+
+@pytest.mark.parametrize("mono", [False, True])
+def test_user_backend_every_frame_matches_numpy(box, mono):
+    from conftest import ROOT
+
+    from radtr_addon.solvers.user import UserSolverError
+
+    h, rows = box
+    lr = build(h, rows, h.levels - 1)
+    lr = lr.monochrome() if mono else lr
+    E = np.random.default_rng(1).uniform(0, 2, (lr.n, lr.channels))
+    user = make_backend("user", lr, user=f"{ROOT / 'examples' / 'direct_solver.py'}:frame")
+    np.testing.assert_allclose(user.solve(E), lr.solve(E), rtol=1e-9)
+    with pytest.raises(UserSolverError, match="no function 'nothing'"):
+        make_backend("user", lr, user=f"{ROOT / 'examples' / 'direct_solver.py'}:nothing")

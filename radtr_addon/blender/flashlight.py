@@ -157,7 +157,7 @@ def cache_folder():
         return Path(bpy.app.tempdir or "/tmp") / "radtr_lowrank"
 
 
-def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_to: int = 0):
+def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_to: int = 0, user: str = ""):
     """A Flashlight over a finished SolveJob: low-rank factors of ``level``, refined to
     ``refine_to`` clusters where the light is when that is more (cached), and the meshes to
     write to. Returns (flashlight, meshes, warnings, read_from_cache)."""
@@ -171,4 +171,4 @@ def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_
     level = min(level, job.hierarchy.levels)
     lowrank, hit = cached_build(job.hierarchy, job.rows, level, folder or cache_folder(),
                                 ff_label=job.rows.settings.label(), refine_to=refine_to, warnings=warnings)
-    return Flashlight(job.leaves, lowrank, backend), LiveMeshes(job.objects, job.leaves), warnings, hit
+    return Flashlight(job.leaves, lowrank, backend, user=user), LiveMeshes(job.objects, job.leaves), warnings, hit

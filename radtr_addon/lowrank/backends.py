@@ -20,10 +20,34 @@ def register(name: str, cls: type):
     BACKENDS[name] = cls
 
 
-def make_backend(name: str, lowrank, dtype=np.float32):
+def make_backend(name: str, lowrank, dtype=np.float32, user: str = ""):
+    """Back-end ``name``; "user" calls your function ``user`` (``solvers.user``) every frame."""
+    if name == "user":
+        return UserBackend(lowrank, dtype, user)
     if name not in BACKENDS:
-        raise SettingsError(f"low-rank back-end must be one of {', '.join(BACKENDS)}, got '{name}'")
+        raise SettingsError(f"low-rank back-end must be one of {', '.join(BACKENDS)} or user, got '{name}'")
     return BACKENDS[name](lowrank, dtype)
+
+
+class UserBackend:
+    """Your function in the loop every frame: ``f(E=, U=, V=, rho=) -> B`` with U (n, k) dense,
+    V (n, k) sparse and E, rho (n, channels); checked like a user solver (``solvers.user``)."""
+
+    def __init__(self, lowrank, dtype, spec: str):
+        from ..solvers.user import load_user_solver
+
+        self.lowrank, self.spec = lowrank, spec
+        self.function = load_user_solver(spec)
+        self.seconds = {"coefficients": 0.0, "product": 0.0}
+
+    def solve(self, E: np.ndarray) -> np.ndarray:
+        from ..solvers.user import call_user_solver
+
+        lr = self.lowrank
+        t0 = time.perf_counter()
+        B = call_user_solver(self.function, self.spec, lr.n, E=E, U=lr.U, V=lr.V, rho=lr.rho)
+        self.seconds["product"] += time.perf_counter() - t0
+        return B[:, :lr.channels]
 
 
 class NumpyBackend:

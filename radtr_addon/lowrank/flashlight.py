@@ -47,15 +47,15 @@ def spot_irradiance(scene, spot: Spot, embree_scene) -> np.ndarray:
 class Flashlight:
     """Per-frame B for spots over a solved patch scene, colour or mono, on a chosen back-end."""
 
-    def __init__(self, scene, lowrank, backend: str = "numpy", dtype=np.float32):
+    def __init__(self, scene, lowrank, backend: str = "numpy", dtype=np.float32, user: str = ""):
         from ..formfactors.raycast import EmbreeRays
 
-        self.scene, self.backend_name, self.dtype = scene, backend, dtype
+        self.scene, self.backend_name, self.dtype, self.user = scene, backend, dtype, user
         self._embree = EmbreeRays(scene, 1)._embree
         self._colour = lowrank
         self._mono = None
         self.mono = False
-        self.backend = make_backend(backend, lowrank, dtype)
+        self.backend = make_backend(backend, lowrank, dtype, user)
         self.seconds = {"visibility": 0.0, "solve": 0.0}
         self.frames = 0
 
@@ -70,7 +70,7 @@ class Flashlight:
         if mono and self._mono is None:
             self._mono = self._colour.monochrome()
         self.mono = mono
-        self.backend = make_backend(self.backend_name, self._mono if mono else self._colour, self.dtype)
+        self.backend = make_backend(self.backend_name, self._mono if mono else self._colour, self.dtype, self.user)
 
     def emission(self, spot: Spot) -> np.ndarray:
         """The right-hand side: the scene's emission plus the reflected spot light."""

@@ -63,7 +63,7 @@ def _describe(exc: BaseException) -> str:
 
 
 def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
-    """B (n, 3) from the user's function, checked."""
+    """B (n, 3) from the user's function, checked (an (n, 1) or (n,) answer is grey)."""
     try:
         B = fn(**problem)
     except Exception as exc:
@@ -72,8 +72,8 @@ def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
         B = np.asarray(B, dtype=float)
     except (TypeError, ValueError):
         raise UserSolverError(f"user solver '{spec}' returned {type(B).__name__}, not an array") from None
-    if B.shape == (n,):
-        B = np.repeat(B[:, None], 3, axis=1)
+    if B.shape in ((n,), (n, 1)):
+        B = np.repeat(B.reshape(n, 1), 3, axis=1)
     if B.shape != (n, 3):
         raise UserSolverError(f"user solver '{spec}' returned shape {B.shape}; expected ({n}, 3)")
     bad = ~np.isfinite(B).all(axis=1)
