@@ -76,4 +76,5 @@ class RADTR_PT_main(bpy.types.Panel):
         row = col.row(align=True)
         row.operator("radtr.patch_view", icon="IMAGE_DATA")
         row.operator("radtr.view_from_patch", icon="VIEW_CAMERA")
+        col.operator("radtr.load_vector", icon="FILE_FOLDER")
         col.operator("radtr.clear", icon="TRASH")

@@ -2,7 +2,9 @@
 
 What is written (n patches): the form factors F (sparse, row i = what patch i sees), the
 low-rank U (n x k) and V (n x k, sparse) when there are any, emission E and reflectance rho
-(n x 3), areas (n) and the triangles (n x 9: the three corners' x, y, z). Three formats:
+(n x 3), areas (n) and the triangles (n x 9: the three corners' x, y, z), and with a sky the
+sky form factors (points x patches, sparse) with the points' directions, positions and solid
+angles. Three formats:
 
 - ``.npz`` (numpy): arrays ``F_data, F_indices, F_indptr, F_shape`` (CSR), ``U``, ``V_*``
   (CSR), ``emission``, ``reflectance``, ``areas``, ``triangles``;
@@ -25,12 +27,14 @@ import scipy.sparse as sp
 from .errors import InputFileError
 
 TEXT_SUFFIXES = {"F": "_ffs.dat", "U": "_U.dat", "V": "_V.dat", "emission": "_es.dat",
-                 "reflectance": "_ros.dat", "areas": "_area.dat", "triangles": "_triangulo.dat"}
+                 "reflectance": "_ros.dat", "areas": "_area.dat", "triangles": "_triangulo.dat",
+                 "sky": "_sky.dat", "sky_directions": "_skydir.dat", "sky_positions": "_skypos.dat",
+                 "sky_solid_angles": "_skyomega.dat"}
 #: Names a vector may have inside an .npz or .mat file, in the order they are looked for.
 VECTOR_NAMES = ("emission", "E", "B", "radiosity", "es")
 
 
-def arrays_of(scene, F: sp.csr_matrix | None = None, U=None, V=None) -> dict:
+def arrays_of(scene, F: sp.csr_matrix | None = None, U=None, V=None, sky=None) -> dict:
     out = {"emission": scene.emission, "reflectance": scene.rho, "areas": scene.areas,
            "triangles": scene.vertices[scene.triangles].reshape(-1, 9)}
     if F is not None:
@@ -39,6 +43,9 @@ def arrays_of(scene, F: sp.csr_matrix | None = None, U=None, V=None) -> dict:
         out["U"] = np.asarray(U)
     if V is not None:
         out["V"] = sp.csr_matrix(V)
+    if sky is not None:                       # sky.SkyFactors: points x patches, and the points
+        out.update({"sky": sp.csr_matrix(sky.S), "sky_directions": sky.directions,
+                    "sky_positions": sky.positions, "sky_solid_angles": sky.solid_angles})
     return out
 
 
@@ -96,13 +103,16 @@ def load_text(prefix) -> dict:
         f = prefix.parent / f"{prefix.name}{suffix}"
         if not f.exists():
             continue
-        a = _read_text(f)
-        if name in ("F", "V"):
+        a = _read_text(f) if f.stat().st_size else np.zeros((0, 3))
+        if name in ("F", "V", "sky"):
             n = len(_read_text(prefix.parent / f"{prefix.name}{TEXT_SUFFIXES['areas']}"))
-            cols = n if name == "F" else int(a[:, 1].max()) if len(a) else 0
-            out[name] = sp.csr_matrix((a[:, 2], (a[:, 0].astype(int) - 1, a[:, 1].astype(int) - 1)), shape=(n, cols))
+            rows = len(_read_text(prefix.parent / f"{prefix.name}{TEXT_SUFFIXES['sky_directions']}")) \
+                if name == "sky" else n
+            cols = int(a[:, 1].max()) if name == "V" and len(a) else n
+            out[name] = sp.csr_matrix((a[:, 2], (a[:, 0].astype(int) - 1, a[:, 1].astype(int) - 1)),
+                                      shape=(rows, cols))
         else:
-            out[name] = a[:, 0] if name == "areas" else a
+            out[name] = a[:, 0] if name in ("areas", "sky_solid_angles") else a
     return out
 
 

@@ -270,3 +270,29 @@ def test_display_modes_and_patch_view_image(addon, cornell):
     s.view_patch = 10**6
     with pytest.raises(RuntimeError, match="patch 1000000 does not exist"):
         bpy.ops.radtr.patch_view()
+
+
+def test_load_vector_shows_radiosity_and_refuses_what_does_not_fit(addon, cornell, tmp_path):
+    bpy = cornell
+    small(bpy)
+    bpy.ops.radtr.solve()
+    job = addon.operators.solve.running["last"]
+    floor = bpy.data.objects["floor_radtr"].data
+
+    def floor_colours():
+        c = np.empty(len(floor.polygons) * 4, dtype=np.float32)
+        floor.attributes["radtr_patch"].data.foreach_get("color", c)
+        return c.reshape(-1, 4)[:, :3]
+    ids = np.empty(len(floor.polygons), dtype=np.int32)
+    floor.attributes["radtr_patch_index"].data.foreach_get("value", ids)
+    B = np.tile(np.arange(job.leaves.n, dtype=float)[:, None] / job.leaves.n, (1, 3))
+    np.savetxt(tmp_path / "b.dat", B)
+    assert bpy.ops.radtr.load_vector(filepath=str(tmp_path / "b.dat"), kind="radiosity") == {"FINISHED"}
+    np.testing.assert_allclose(floor_colours(), B[ids], rtol=1e-6)
+    np.savetxt(tmp_path / "short.dat", B[:-1])
+    with pytest.raises(RuntimeError, match="short.dat: has .* rows, the scene has"):
+        bpy.ops.radtr.load_vector(filepath=str(tmp_path / "short.dat"), kind="emission")
+    np.testing.assert_allclose(floor_colours(), B[ids], rtol=1e-6)          # unchanged
+    np.savetxt(tmp_path / "e.dat", job.leaves.emission * 2)
+    assert bpy.ops.radtr.load_vector(filepath=str(tmp_path / "e.dat"), kind="emission") == {"FINISHED"}
+    np.testing.assert_allclose(floor_colours(), 2 * job.result.B[ids], rtol=0.02)   # tolerance 1e-2 solves

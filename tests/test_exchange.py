@@ -18,7 +18,13 @@ def arrays():
     F = sp.random(s.n, s.n, density=0.3, random_state=1, format="csr")
     U = rng.uniform(size=(s.n, 5)) / 7
     V = sp.csr_matrix((np.ones(s.n) * 1.0, (np.arange(s.n), np.arange(s.n) % 5)), shape=(s.n, 5))
-    return arrays_of(s, F, U, V)
+    from radtr_addon.scene import PatchScene
+    from radtr_addon.sky import sky_factors
+
+    outward = PatchScene(s.vertices, s.triangles[:, ::-1], s.rho, s.emission, 0, 0)   # so the sky sees it
+    sky = sky_factors(outward, 30, 30, resolution=32)
+    assert sky.S.nnz > 0
+    return arrays_of(s, F, U, V, sky)
 
 
 def same(a, b):
@@ -33,7 +39,8 @@ def test_round_trip_is_exact(arrays, tmp_path, name):
     back = load(files[0]) if name.endswith(("npz", "mat")) else load_text(tmp_path / name)
     if name == "scene":
         assert sorted(f.name for f in files) == sorted(f"scene{s}" for s in (
-            "_ffs.dat", "_U.dat", "_V.dat", "_es.dat", "_ros.dat", "_area.dat", "_triangulo.dat"))
+            "_ffs.dat", "_U.dat", "_V.dat", "_es.dat", "_ros.dat", "_area.dat", "_triangulo.dat",
+            "_sky.dat", "_skydir.dat", "_skypos.dat", "_skyomega.dat"))
     for key, value in arrays.items():
         assert same(value, back[key]), key
 
