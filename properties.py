@@ -115,7 +115,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     view_kind: EnumProperty(
         name="View", default="paraboloid",
         items=[("paraboloid", "Paraboloid", "The hemisphere map the paraboloid method draws"),
-               ("hemicube", "Hemicube", "The unfolded hemicube")])
+               ("hemicube", "Hemicube", "The unfolded hemicube"),
+               ("sky", "Sky", "The sky's parallel view from the dome point along the patch's normal")])
     mode: EnumProperty(
         name="Result", default=_D.mode,
         items=[("COPY", "Copies", "Subdivided copies in a 'RadTR' collection; sources hidden"),

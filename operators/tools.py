@@ -105,3 +105,40 @@ class RADTR_OT_load_vector(bpy.types.Operator):
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
+
+
+class RADTR_OT_toggle_emission(bpy.types.Operator):
+    """Click patches to switch their emission on or off and see the light solved again (Esc or right click ends)"""
+
+    bl_idname = "radtr.toggle_emission"
+    bl_label = "Toggle Patch Emission"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return running["last"] is not None and context.area is not None and context.area.type == "VIEW_3D"
+
+    def invoke(self, context, event):
+        self.emission = running["last"].leaves.emission.copy()
+        context.window_manager.modal_handler_add(self)
+        context.area.header_text_set("RadTR: click a patch to switch its emission; Esc or right click ends")
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        from bpy_extras import view3d_utils
+
+        from ..radtr_addon.blender.sequence import toggle_patch
+
+        if event.type in ("ESC", "RIGHTMOUSE"):
+            context.area.header_text_set(None)
+            return {"FINISHED"}
+        if event.type != "LEFTMOUSE" or event.value != "PRESS":
+            return {"PASS_THROUGH"}
+        xy = (event.mouse_region_x, event.mouse_region_y)
+        origin = view3d_utils.region_2d_to_origin_3d(context.region, context.region_data, xy)
+        direction = view3d_utils.region_2d_to_vector_3d(context.region, context.region_data, xy)
+        i, self.emission = toggle_patch(running["last"], origin, direction, self.emission)
+        if i >= 0:
+            self.report({"INFO"}, f"RadTR: {running['last'].leaves.patch_label(i)} "
+                                  f"{'on' if self.emission[i].max() > 0 else 'off'}")
+        return {"RUNNING_MODAL"}

@@ -77,4 +77,5 @@ class RADTR_PT_main(bpy.types.Panel):
         row.operator("radtr.patch_view", icon="IMAGE_DATA")
         row.operator("radtr.view_from_patch", icon="VIEW_CAMERA")
         col.operator("radtr.load_vector", icon="FILE_FOLDER")
+        col.operator("radtr.toggle_emission", icon="RESTRICT_SELECT_OFF")
         col.operator("radtr.clear", icon="TRASH")

@@ -1,7 +1,8 @@
 """What a patch sees, as pictures (the seed's F16/F17 debug views), and where to put the eye.
 
 ``patch_view`` casts one Embree ray per pixel from a patch's centroid and returns the patch id
-each pixel sees (-1 nothing, -2 a back face): ``"paraboloid"`` is the orthographic
+each pixel sees (-1 nothing, -2 a back face; ``"sky"``: the parallel view a sky form factor
+counts, from the dome point along the patch's normal): ``"paraboloid"`` is the orthographic
 hemisphere (Nusselt) map the paraboloid method draws, where every pixel in the disk weighs
 the same, so a patch's share of the disk is its form factor; ``"hemicube"`` is the unfolded
 hemicube, the full top face in the middle of a 2 res x 2 res cross and the four half faces
@@ -15,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from .formfactors.hemicube import tangent_frames
 
-VIEWS = ("paraboloid", "hemicube")
+VIEWS = ("paraboloid", "hemicube", "sky")
 
 
 def _directions(kind: str, res: int):
@@ -48,11 +49,35 @@ def _directions(kind: str, res: int):
     return d
 
 
-def patch_view(scene, i: int, kind: str = "paraboloid", res: int = 128, caster=None) -> np.ndarray:
-    """Patch ids (h, w) seen from patch ``i``'s centroid: -1 nothing, -2 back face, NaN pixels -3."""
+def sky_view(scene, direction, res: int = 128, caster=None) -> np.ndarray:
+    """Patch ids (res, res) of the parallel view from the sky point in ``direction`` (the view a
+    sky form factor counts, ``sky``): -1 sky seen through, -2 a back face."""
     from .formfactors.raycast import EmbreeRays
 
     caster = caster or EmbreeRays(scene, 1)
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
+    centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * 1.01 + 1e-9
+    t, b = tangent_frames(d[None])
+    g = (np.arange(res) + 0.5) / res * 2 - 1
+    gx, gy = np.meshgrid(g * radius, g[::-1] * radius)
+    origins = centre + 2 * radius * d + gx.reshape(-1, 1) * t[0] + gy.reshape(-1, 1) * b[0]
+    hit = caster._embree.run(origins.astype(np.float32), np.broadcast_to(-d, origins.shape).astype(np.float32))
+    hit = hit.astype(int)
+    back = (hit >= 0) & (scene.normals[np.maximum(hit, 0)] @ d < 0)
+    return np.where(back, -2, hit).reshape(res, res)
+
+
+def patch_view(scene, i: int, kind: str = "paraboloid", res: int = 128, caster=None) -> np.ndarray:
+    """Patch ids (h, w) seen from patch ``i``'s centroid: -1 nothing, -2 back face, NaN pixels -3.
+    ``"sky"``: the sky's parallel view from the dome point along the patch's normal (the zenith
+    when the normal points down)."""
+    from .formfactors.raycast import EmbreeRays
+
+    caster = caster or EmbreeRays(scene, 1)
+    if kind == "sky":
+        n = scene.normals[i]
+        return sky_view(scene, n if n[2] > 0 else [0.0, 0.0, 1.0], res, caster)
     local = _directions(kind, res)
     ok = ~np.isnan(local[..., 0])
     n = scene.normals[i]
@@ -91,3 +116,19 @@ def view_from_patch(scene, i: int, lift: float = 1e-3) -> tuple[np.ndarray, np.n
     q = np.array([qw, qx, qy, qz])
     diag = float(np.linalg.norm(scene.vertices.max(axis=0) - scene.vertices.min(axis=0)))
     return scene.centroids[i] + lift * diag * n, q / np.linalg.norm(q)
+
+
+def pick_patch(scene, origin, direction, caster=None) -> int:
+    """The patch a ray from ``origin`` along ``direction`` hits first, or -1 (a viewport click)."""
+    from .formfactors.raycast import EmbreeRays
+
+    caster = caster or EmbreeRays(scene, 1)
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    return int(caster._embree.run(np.asarray([origin], np.float32), np.asarray([d], np.float32))[0])
+
+
+def toggle_emission(E: np.ndarray, i: int) -> np.ndarray:
+    """E with patch i switched off if it emits, else on at the scene's brightest emission (F17)."""
+    out = E.copy()
+    out[i] = 0.0 if E[i].max() > 0 else E[E.max(axis=1).argmax()]
+    return out

@@ -52,3 +52,18 @@ def test_watch_loads_only_complete_versions(job, tmp_path):
     shown = watch(job, target, tmp_path / "w", polls=8, sleep=lambda _: next(script)(), log=logs.append)
     assert [p.name for p in shown] == ["watch_0000.png", "watch_0001.png"]
     assert any("waiting for a complete file" in line for line in logs)
+
+
+def test_clicking_a_patch_toggles_its_emission(job):
+    from radtr_addon.blender.sequence import toggle_patch
+
+    leaves = job.leaves
+    light = int(np.flatnonzero(leaves.emission.max(axis=1) > 0)[0])
+    eye = leaves.centroids[light] + 0.2 * leaves.normals[light]            # in front of the light, looking at it
+    i, E = toggle_patch(job, eye, -leaves.normals[light], leaves.emission)
+    assert i == light and E[i].max() == 0 and E.sum() < leaves.emission.sum()
+    floor = [s.name for s in job.extraction.objects].index("floor")
+    f = int(np.flatnonzero(leaves.object_index == floor)[0])
+    j, E2 = toggle_patch(job, leaves.centroids[f] + 0.1 * leaves.normals[f], -leaves.normals[f], E)
+    assert j == f and np.array_equal(E2[f], E[E.max(axis=1).argmax()])           # on at the brightest emission
+    assert toggle_patch(job, [0, 0, 50.0], [0, 0, 1.0], E2)[0] == -1                 # a click on nothing

@@ -44,3 +44,18 @@ def test_view_from_patch_looks_along_the_normal():
                       [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
         np.testing.assert_allclose(R @ [0, 0, -1.0], s.normals[i], atol=1e-9)
         assert (eye - s.centroids[i]) @ s.normals[i] > 0
+
+
+def test_sky_view_counts_what_the_sky_form_factors_count():
+    from test_lights import plane
+
+    from radtr_addon.sky import sky_factors
+    from radtr_addon.views import sky_view
+
+    s = plane(half=1.0, cells=2)
+    sky = sky_factors(s, 30, 30, resolution=64)
+    for p in (0, 5, len(sky.directions) - 1):
+        ids = sky_view(s, sky.directions[p], res=64)
+        counts = np.bincount(ids[ids >= 0], minlength=s.n)
+        pixel = (2 * (0.5 * np.linalg.norm(s.vertices.max(0) - s.vertices.min(0)) * 1.01 + 1e-9) / 64) ** 2
+        np.testing.assert_allclose(counts * pixel / s.areas, sky.S[p].toarray().ravel(), rtol=1e-9)

@@ -81,3 +81,15 @@ def watch(job, path, out_dir, polls: int, interval: float = 0.5, sleep=time.slee
     finally:
         meshes.restore(saved)
     return shown
+
+
+def toggle_patch(job, origin, direction, emission: np.ndarray) -> tuple[int, np.ndarray]:
+    """Click on a patch: (its id or -1, the new emission); the solve is shown in the result meshes."""
+    from ..views import pick_patch, toggle_emission
+
+    i = pick_patch(job.leaves, origin, direction)
+    if i < 0:
+        return i, emission
+    E = toggle_emission(emission, i)
+    LiveMeshes(job.objects, job.leaves).write(solve_with_emission(job, E))
+    return i, E
