@@ -7,7 +7,8 @@ from ..radtr_addon.errors import RadTRError
 from .solve import running
 
 
-def _mouse_ray(context, event):
+def mouse_ray(context, event):
+    """(origin, direction) of the view ray through the mouse."""
     from bpy_extras import view3d_utils
 
     region, rv3d = context.region, context.region_data
@@ -40,14 +41,14 @@ class RADTR_OT_flashlight(bpy.types.Operator):
         for w in warnings:
             self.report({"WARNING"}, w)
         self.report({"INFO"}, f"RadTR: low-rank factors {'read from the cache' if hit else 'built'}")
-        origin, direction = _mouse_ray(context, event)
+        origin, direction = mouse_ray(context, event)
         self.session = FlashlightSession(light, meshes, default_spot(light.scene, origin, direction))
         self.session.update()
         context.window_manager.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
-        ray = _mouse_ray(context, event) if event.type == "MOUSEMOVE" else None
+        ray = mouse_ray(context, event) if event.type == "MOUSEMOVE" else None
         result = self.session.handle(event.type, event.value, ray)
         context.area.header_text_set(self.session.header if result == {"RUNNING_MODAL"} else None)
         context.area.tag_redraw()

@@ -125,18 +125,15 @@ class RADTR_OT_toggle_emission(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
-        from bpy_extras import view3d_utils
-
         from ..radtr_addon.blender.sequence import toggle_patch
+        from .flashlight import mouse_ray
 
         if event.type in ("ESC", "RIGHTMOUSE"):
             context.area.header_text_set(None)
             return {"FINISHED"}
         if event.type != "LEFTMOUSE" or event.value != "PRESS":
             return {"PASS_THROUGH"}
-        xy = (event.mouse_region_x, event.mouse_region_y)
-        origin = view3d_utils.region_2d_to_origin_3d(context.region, context.region_data, xy)
-        direction = view3d_utils.region_2d_to_vector_3d(context.region, context.region_data, xy)
+        origin, direction = mouse_ray(context, event)
         i, self.emission = toggle_patch(running["last"], origin, direction, self.emission)
         if i >= 0:
             self.report({"INFO"}, f"RadTR: {running['last'].leaves.patch_label(i)} "
