@@ -148,8 +148,7 @@ def unoccluded(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndar
     return H * spot_mask(light, -u) if light.kind == "SPOT" else H
 
 
-def visibility(light: Light, points: np.ndarray, normals: np.ndarray, embree_scene, samples: int,
-               epsilon: float) -> np.ndarray:
+def visibility(light: Light, points: np.ndarray, normals: np.ndarray, caster, samples: int) -> np.ndarray:
     """Fraction (k,) of shadow rays from each point that reach the light, among the rays above
     the point's horizon (the part of a light below it is already clipped from its form factor)."""
     if light.kind == "SUN":
@@ -172,10 +171,9 @@ def visibility(light: Light, points: np.ndarray, normals: np.ndarray, embree_sce
         d = d.reshape(-1, 3) / np.maximum(dist, 1e-300)[:, None]
         origins = np.repeat(points, len(targets), axis=0)
         dist = dist * (1 - 1e-5)
-    blocked = embree_scene.run((origins + epsilon * d).astype(np.float32), d.astype(np.float32),
-                               dists=dist.astype(np.float32), query="OCCLUDED")
+    clear = caster.reaches(origins + caster.epsilon * d, d, dist)
     above = (np.einsum("ij,ij->i", d, np.repeat(normals, len(d) // len(points), axis=0)) > 0)
-    seen = ((blocked < 0) & above).reshape(len(points), -1).sum(axis=1)
+    seen = (clear & above).reshape(len(points), -1).sum(axis=1)
     return seen / np.maximum(above.reshape(len(points), -1).sum(axis=1), 1)
 
 
@@ -209,7 +207,7 @@ def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: fl
         culled += (raw[skipped] * area[skipped]).sum() * light.color
         ids = np.flatnonzero(keep)
         if len(ids):
-            vis = visibility(light, points[ids], normals[ids], caster._embree, samples, caster.epsilon)
+            vis = visibility(light, points[ids], normals[ids], caster, samples)
             Hp[ids] += np.outer(raw[ids] * vis, light.color)
     return Hp.reshape(scene.n, k, 3).mean(axis=1), culled
 
@@ -231,8 +229,7 @@ def equirect_lookup(image: np.ndarray):
 def sky_irradiance(scene, radiance, rays: int = 64, seed: int = 0, caster=None) -> np.ndarray:
     """Irradiance (n, 3) at the patches from a distant sky of ``radiance(dirs) -> (k, 3)``
     (W/m^2/sr): pi x the mean radiance over cosine-weighted rays that leave the scene."""
-    from .formfactors.hemicube import tangent_frames
-    from .formfactors.raycast import EmbreeRays
+    from .formfactors.raycast import EmbreeRays, cosine_directions
 
     caster = caster or EmbreeRays(scene, rays, seed)
     m2 = caster.rays
@@ -244,14 +241,9 @@ def sky_irradiance(scene, radiance, rays: int = 64, seed: int = 0, caster=None) 
         rng = np.random.default_rng((seed, 2, start))
         u = (u[None] + (rng.random((len(ids), m2)) - 0.5) / caster.side) % 1.0
         v = (v[None] + (rng.random((len(ids), m2)) - 0.5) / caster.side) % 1.0
-        radius, phi = np.sqrt(u), 2 * np.pi * v
         n = scene.normals[ids]
-        t, b = tangent_frames(n)
-        local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
-        dirs = (local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * n[:, None]).reshape(-1, 3)
+        dirs = cosine_directions(u, v, n).reshape(-1, 3)
         origins = np.repeat(scene.centroids[ids] + caster.epsilon * n, m2, axis=0)
-        blocked = caster._embree.run(origins.astype(np.float32), dirs.astype(np.float32),
-                                     dists=np.full(len(dirs), 1e30, np.float32), query="OCCLUDED")
-        L = radiance(dirs) * (blocked < 0)[:, None]                       # -1: nothing in the way
+        L = radiance(dirs) * caster.reaches(origins, dirs)[:, None]
         H[ids] = np.pi * L.reshape(len(ids), m2, 3).mean(axis=1)
     return H

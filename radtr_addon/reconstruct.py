@@ -121,10 +121,9 @@ def _visible_fraction(caster: EmbreeRays, points, normals, pairs, targets) -> np
     dist = np.linalg.norm(d, axis=-1)
     d = d / np.maximum(dist, 1e-300)[..., None]
     origins = np.broadcast_to(points[p][:, None], d.shape).reshape(-1, 3)
-    blocked = caster._embree.run(origins.astype(np.float32), d.reshape(-1, 3).astype(np.float32),
-                                 dists=(dist.ravel() * (1 - 1e-5)).astype(np.float32), query="OCCLUDED")
+    clear = caster.reaches(origins, d.reshape(-1, 3), dist.ravel() * (1 - 1e-5)).reshape(dist.shape)
     above = np.einsum("msc,mc->ms", d, normals[p]) > 0
-    seen = ((blocked.reshape(dist.shape) < 0) & above).sum(axis=1)
+    seen = (clear & above).sum(axis=1)
     return seen / np.maximum(above.sum(axis=1), 1)
 
 

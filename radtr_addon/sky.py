@@ -74,7 +74,7 @@ def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int 
     for p, d in enumerate(directions):
         origins = centre + 2 * radius * d + gx.reshape(-1, 1) * t[p] + gy.reshape(-1, 1) * b[p]
         ray = np.broadcast_to(-d, origins.shape)
-        hit = caster._embree.run(origins.astype(np.float32), ray.astype(np.float32)).astype(np.int64)
+        hit = caster.hit(origins, ray)
         front = (hit >= 0) & (scene.normals[np.maximum(hit, 0)] @ d > 0)
         ids, counts = np.unique(hit[front], return_counts=True)
         rows += [p] * len(ids)

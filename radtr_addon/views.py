@@ -62,8 +62,7 @@ def sky_view(scene, direction, res: int = 128, caster=None) -> np.ndarray:
     g = (np.arange(res) + 0.5) / res * 2 - 1
     gx, gy = np.meshgrid(g * radius, g[::-1] * radius)
     origins = centre + 2 * radius * d + gx.reshape(-1, 1) * t[0] + gy.reshape(-1, 1) * b[0]
-    hit = caster._embree.run(origins.astype(np.float32), np.broadcast_to(-d, origins.shape).astype(np.float32))
-    hit = hit.astype(int)
+    hit = caster.hit(origins, np.broadcast_to(-d, origins.shape))
     back = (hit >= 0) & (scene.normals[np.maximum(hit, 0)] @ d < 0)
     return np.where(back, -2, hit).reshape(res, res)
 
@@ -85,7 +84,7 @@ def patch_view(scene, i: int, kind: str = "paraboloid", res: int = 128, caster=N
     d = local[ok] @ np.stack([t[0], b[0], n])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     origin = scene.centroids[i] + caster.epsilon * n
-    hit = caster._embree.run(np.broadcast_to(origin, d.shape).astype(np.float32), d.astype(np.float32)).astype(int)
+    hit = caster.hit(np.broadcast_to(origin, d.shape), d)
     back = (hit >= 0) & (np.einsum("ij,ij->i", d, scene.normals[np.maximum(hit, 0)]) > 0)
     out = np.full(ok.shape, -3)
     out[ok] = np.where(back, -2, hit)
@@ -124,7 +123,7 @@ def pick_patch(scene, origin, direction, caster=None) -> int:
 
     caster = caster or EmbreeRays(scene, 1)
     d = np.asarray(direction, float) / np.linalg.norm(direction)
-    return int(caster._embree.run(np.asarray([origin], np.float32), np.asarray([d], np.float32))[0])
+    return int(caster.hit(np.asarray([origin], float), d[None])[0])
 
 
 def toggle_emission(E: np.ndarray, i: int) -> np.ndarray:

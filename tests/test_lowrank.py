@@ -124,7 +124,7 @@ def test_spot_irradiance_is_i_cos_over_r_squared_inside_the_cone():
     from radtr_addon.formfactors.raycast import EmbreeRays
 
     s, spot = plane_and_spot()
-    H = spot_irradiance(s, spot, EmbreeRays(s, 1)._embree)
+    H = spot_irradiance(s, spot, EmbreeRays(s, 1))
     d = s.centroids - spot.position
     r = np.linalg.norm(d, axis=1)
     inside = (d @ spot.direction) / r >= np.cos(spot.angle)

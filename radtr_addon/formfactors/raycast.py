@@ -32,6 +32,14 @@ def _triangle_points(tri: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.ndar
     return (1 - s) * a + s * (1 - r2[..., None]) * b + s * r2[..., None] * c
 
 
+def cosine_directions(u: np.ndarray, v: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Cosine-weighted directions (k, m, 3) from unit-square samples u, v (k, m) about normals (k, 3)."""
+    radius, phi = np.sqrt(u), 2 * np.pi * v
+    t, b = tangent_frames(normals)
+    local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
+    return local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * normals[:, None]
+
+
 class EmbreeRays:
     """Rows of form factors for a PatchScene by stratified cosine-weighted rays."""
 
@@ -103,16 +111,9 @@ class EmbreeRays:
     def _cast(self, origins: np.ndarray, normals: np.ndarray, samples) -> list[Row]:
         """Cosine rays from ``origins`` (k, m2, 3) about ``normals`` (k, 3), as rows."""
         s, k, m2 = self.scene, len(normals), self.rays
-        u = np.stack([x[0] for x in samples])
-        v = np.stack([x[1] for x in samples])
-        radius, phi = np.sqrt(u), 2 * np.pi * v
-        t, b = tangent_frames(normals)
-        local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
-        dirs = (local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * normals[:, None])
+        dirs = cosine_directions(np.stack([x[0] for x in samples]), np.stack([x[1] for x in samples]), normals)
         origins = origins + self.epsilon * normals[:, None]
-        hit = self._embree.run(origins.reshape(-1, 3).astype(np.float32), dirs.reshape(-1, 3).astype(np.float32))
-        self.cast += hit.size
-        hit = hit.astype(np.int64)
+        hit = self.hit(origins.reshape(-1, 3), dirs.reshape(-1, 3))
         back = (hit >= 0) & (np.einsum("ij,ij->i", dirs.reshape(-1, 3), s.normals[np.maximum(hit, 0)]) > 0)
         # columns: 0 escaped, 1..n patches, n + 1 blocked
         col = np.where(hit < 0, 0, np.where(back, s.n + 1, hit + 1))
@@ -123,6 +124,20 @@ class EmbreeRays:
             idx = np.flatnonzero(row[1:s.n + 1])
             out.append(Row(idx, row[1:s.n + 1][idx], float(row[0]), float(row[s.n + 1])))
         return out
+
+    def hit(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Patch id (k,) each ray from ``origins`` along ``dirs`` (k, 3) hits first, -1 for none."""
+        self.cast += len(origins)
+        return self._embree.run(np.asarray(origins, np.float32), np.asarray(dirs, np.float32)).astype(np.int64)
+
+    def reaches(self, origins: np.ndarray, dirs: np.ndarray, dists: np.ndarray | None = None) -> np.ndarray:
+        """Whether nothing is in the way (k,) of rays from ``origins`` along unit ``dirs`` for
+        ``dists`` (default: to infinity)."""
+        self.cast += len(origins)
+        dists = np.full(len(origins), 1e30) if dists is None else dists
+        blocked = self._embree.run(np.asarray(origins, np.float32), np.asarray(dirs, np.float32),
+                                   dists=np.asarray(dists, np.float32), query="OCCLUDED")
+        return blocked < 0
 
     def visible_fraction(self, point: np.ndarray, j: int, samples: int = 16) -> float:
         """Fraction of ``samples`` stratified points on patch j with a clear line from ``point``."""
@@ -135,10 +150,7 @@ class EmbreeRays:
         dist = np.linalg.norm(d, axis=1)
         keep = dist > 0
         d, dist = d[keep] / dist[keep, None], dist[keep]
-        origins = np.broadcast_to(point, d.shape).astype(np.float32)
-        occluded = self._embree.run(origins, d.astype(np.float32), dists=(dist * (1 - 1e-5)).astype(np.float32),
-                                    query="OCCLUDED")
-        return float(np.mean(occluded < 0)) if len(d) else 0.0
+        return float(np.mean(self.reaches(np.broadcast_to(point, d.shape), d, dist * (1 - 1e-5)))) if len(d) else 0.0
 
     def point_to_patch(self, point, normal, j: int, samples: int = 16) -> float:
         """Closed-form form factor from a differential area to patch j, times its visible fraction."""

@@ -26,7 +26,7 @@ class Spot:
     color: np.ndarray = field(default_factory=lambda: np.ones(3))
 
 
-def spot_irradiance(scene, spot: Spot, embree_scene) -> np.ndarray:
+def spot_irradiance(scene, spot: Spot, caster) -> np.ndarray:
     """Direct irradiance (n, 3) from ``spot`` at the patch centres, with shadow rays."""
     d = scene.centroids - spot.position
     r = np.linalg.norm(d, axis=1)
@@ -36,10 +36,7 @@ def spot_irradiance(scene, spot: Spot, embree_scene) -> np.ndarray:
     lit = np.flatnonzero((u @ direction >= np.cos(spot.angle)) & (cos_patch > 0) & (r > 0))
     H = np.zeros((scene.n, 3))
     if len(lit):
-        origins = np.broadcast_to(spot.position, (len(lit), 3)).astype(np.float32)
-        blocked = embree_scene.run(origins, u[lit].astype(np.float32), dists=(r[lit] * (1 - 1e-5)).astype(np.float32),
-                                   query="OCCLUDED")
-        seen = lit[blocked < 0]
+        seen = lit[caster.reaches(np.broadcast_to(spot.position, (len(lit), 3)), u[lit], r[lit] * (1 - 1e-5))]
         H[seen] = np.outer(spot.intensity * cos_patch[seen] / r[seen] ** 2, spot.color)
     return H
 
@@ -51,7 +48,7 @@ class Flashlight:
         from ..formfactors.raycast import EmbreeRays
 
         self.scene, self.backend_name, self.dtype, self.user = scene, backend, dtype, user
-        self._embree = EmbreeRays(scene, 1)._embree
+        self._caster = EmbreeRays(scene, 1)
         self._colour = lowrank
         self._mono = None
         self.mono = False
@@ -75,7 +72,7 @@ class Flashlight:
     def emission(self, spot: Spot) -> np.ndarray:
         """The right-hand side: the scene's emission plus the reflected spot light."""
         s = self.scene
-        E = s.emission + s.rho * spot_irradiance(s, spot, self._embree)
+        E = s.emission + s.rho * spot_irradiance(s, spot, self._caster)
         return E.mean(axis=1, keepdims=True) if self.mono else E
 
     def frame(self, spot: Spot) -> tuple[np.ndarray, dict]:
