@@ -24,7 +24,8 @@ DENSE_FRACTION = 0.05
 
 
 class DirectSolver(Solver):
-    """Assembles F a batch of rows per step, then solves all channels in one step."""
+    """Assembles F a batch of rows per step, then solves all channels in one step (``_solve``,
+    which ``UserSolver`` replaces with the user's function)."""
 
     name = "direct"
 
@@ -33,7 +34,7 @@ class DirectSolver(Solver):
         n = scene.n
         rows.rows(np.unique(np.linspace(0, n - 1, min(n, 64)).astype(np.int64)))   # a size sample
         dense = rows.projected_bytes(n) / 12 > DENSE_FRACTION * n * n
-        rows.require_all(n, extra_bytes=self.factor_bytes(n) if dense else 0, why="the direct solve of")
+        rows.require_all(n, extra_bytes=self._extra_bytes(n, dense), why=f"the {self.name} solve of")
         self._assembly = Assembly(rows, n)
         self.B = np.zeros((n, 3))
         self.H = np.zeros((n, 3))
@@ -45,18 +46,29 @@ class DirectSolver(Solver):
         """Bytes a dense factorisation of one channel needs (the worst case)."""
         return 8 * n * n
 
+    def _extra_bytes(self, n: int, dense: bool) -> int:
+        return self.factor_bytes(n) if dense else 0
+
     @property
     def phase(self) -> str:
         if self.K is None:
             return f"assembling form factors: {self._assembly.cursor:,} of {self.scene.n:,} rows"
-        return "factoring"
+        return "solving"
 
     def _advance(self, t0: float):
         F = self._assembly.step()
         if F is None:
             return
-        area = self.area
-        self.K = K = transport(F, area)
+        self.K = transport(F, self.area)
+        self.B = self._solve(F, self.K)
+        self.H = self.K @ self.B
+        self.iterations = 1
+        self._residual = self.E + self.rho * self.H - self.B
+        self._record((np.abs(self._residual) * self.area[:, None]).sum(axis=0), time.perf_counter() - t0)
+        self.converged = True
+
+    def _solve(self, F, K) -> np.ndarray:
+        """B (n, 3) in scaled units: LU of I - R_c K per channel, dense above DENSE_FRACTION fill."""
         n = self.scene.n
         E, rho = self.E.astype(np.float64), self.rho.astype(np.float64)
         dense = K.nnz > DENSE_FRACTION * n * n
@@ -64,19 +76,16 @@ class DirectSolver(Solver):
             raise SceneError(f"the direct solve of {n:,} patches needs {self.factor_bytes(n) / 2**30:.2f} GiB "
                              f"to factor, over the budget of {self.rows.budget_bytes / 2**30:.2f} GiB")
         Kd = K.toarray() if dense else None
+        B = np.empty((n, 3))
         for c in range(3):
             if dense:
                 M = -rho[:, c, None] * Kd
                 M[np.diag_indices(n)] += 1.0
-                self.B[:, c] = la.lu_solve(la.lu_factor(M, overwrite_a=True, check_finite=False), E[:, c])
+                B[:, c] = la.lu_solve(la.lu_factor(M, overwrite_a=True, check_finite=False), E[:, c])
             else:
                 M = (sp.identity(n, format="csc") - sp.diags(rho[:, c]) @ K).tocsc()
-                self.B[:, c] = spla.splu(M).solve(E[:, c])
-        self.H = K @ self.B
-        self.iterations = 1
-        self._residual = E + rho * self.H - self.B
-        self._record((self._residual * area[:, None]).sum(axis=0), time.perf_counter() - t0)
-        self.converged = True
+                B[:, c] = spla.splu(M).solve(E[:, c])
+        return B
 
     def _books(self):
         out = self.B * self.area[:, None]

@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import time
 import traceback
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import RadTRError
-from .base import Solver
-from .matrix import Assembly, transport
+from .direct import DirectSolver
 
 
 class UserSolverError(RadTRError):
@@ -83,41 +81,21 @@ def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
     return B
 
 
-class UserSolver(Solver):
-    """Assembles F a batch of rows per step, then calls the user's function in one step."""
+class UserSolver(DirectSolver):
+    """The direct solve's steps (assemble F, then one solve) with the user's function as the solve."""
 
     name = "user"
 
     def __init__(self, scene, rows, *, spec: str, **kw):
-        super().__init__(scene, rows, **kw)
         self.spec = spec
         self.function = load_user_solver(spec)
-        self._assembly = Assembly(rows, scene.n)
-        self.B = np.zeros((scene.n, 3))
-        self.H = np.zeros((scene.n, 3))
-        self._record(self.emitted)
+        super().__init__(scene, rows, **kw)
 
-    @property
-    def phase(self) -> str:
-        return f"assembling form factors: {self._assembly.cursor:,} of {self.scene.n:,} rows"
+    def _extra_bytes(self, n: int, dense: bool) -> int:
+        return 0                                 # the user's function brings its own memory
 
-    def _advance(self, t0: float):
-        F = self._assembly.step()
-        if F is None:
-            return
+    def _solve(self, F, K) -> np.ndarray:
         s = self.scene
         B = call_user_solver(self.function, self.spec, s.n, F=F, E=s.emission.copy(), rho=s.rho.copy(),
                              areas=s.areas.copy())
-        self.B = B / self.scale
-        self.H = transport(F, self.area) @ self.B
-        self.iterations = 1
-        self._residual = self.E + self.rho * self.H - self.B
-        self._record((np.abs(self._residual) * self.area[:, None]).sum(axis=0), time.perf_counter() - t0)
-        self.converged = True
-
-    def _books(self):
-        out = self.B * self.area[:, None]
-        losses = self._assembly.losses
-        unshot = (self._residual * self.area[:, None]).sum(axis=0) if self.iterations else self.emitted
-        return (self.B, self.H, (out * losses.escaped[:, None]).sum(axis=0),
-                (out * losses.blocked[:, None]).sum(axis=0), unshot)
+        return B / self.scale
