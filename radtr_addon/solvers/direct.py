@@ -88,8 +88,6 @@ class DirectSolver(Solver):
         return B
 
     def _books(self):
-        out = self.B * self.area[:, None]
-        losses = self._assembly.losses
-        return (self.B, self.H, (out * losses.escaped[:, None]).sum(axis=0),
-                (out * losses.blocked[:, None]).sum(axis=0),
-                (self._residual * self.area[:, None]).sum(axis=0) if self.iterations else self.emitted)
+        escaped, blocked = self._assembly.losses.lost(self.B * self.area[:, None])
+        unshot = (self._residual * self.area[:, None]).sum(axis=0) if self.iterations else self.emitted
+        return self.B, self.H, escaped, blocked, unshot

@@ -138,7 +138,5 @@ class GatheringSolver(Solver):
         Jacobi reports B after the sweep (= E + rho H) and counts the books on the B the
         sweep started from; the sweep's change is the unshot term.
         """
-        out = self.B_books * self._area
-        return (self.B, self.H, (out * self.losses.escaped[:, None]).sum(axis=0, dtype=np.float64),
-                (out * self.losses.blocked[:, None]).sum(axis=0, dtype=np.float64),
-                (self._residual * self._area).sum(axis=0, dtype=np.float64))
+        escaped, blocked = self.losses.lost(self.B_books * self._area)
+        return self.B, self.H, escaped, blocked, (self._residual * self._area).sum(axis=0, dtype=np.float64)

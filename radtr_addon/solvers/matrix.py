@@ -21,6 +21,10 @@ class RowLosses:
         self.blocked = np.zeros(n)
         self.self_ff = np.zeros(n)
 
+    def lost(self, out: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(escaped, blocked) power per channel of patches sending ``out`` (n, 3) W."""
+        return (out * self.escaped[:, None]).sum(axis=0), (out * self.blocked[:, None]).sum(axis=0)
+
     def note(self, ids, rows):
         for j, r in zip(ids, rows):
             self.escaped[j], self.blocked[j] = r.escaped, r.blocked
