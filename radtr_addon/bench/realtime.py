@@ -39,22 +39,11 @@ def spots(count: int) -> list[Spot]:
 
 def job_for(target: int, levels: int):
     """A SolveJob (not solved) of the Cornell box at about ``target`` patches, with result meshes."""
-    import bpy
-
-    from ..blender.extract import extract, source_objects
-    from ..blender.pipeline import Settings, SolveJob
     from ..blender.write import write_results
-    from ..cli import load_bundled
-    from .skeleton import max_area_for
+    from .skeleton import cornell_job
 
-    bpy.ops.wm.read_homefile(use_empty=True)
-    load_bundled("cornell_box").build(bpy)
-    ctx = bpy.context
-    base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
-    settings = Settings(max_area=max_area_for(base.areas, target, levels), levels=levels, method="embree",
-                        rays=256, cache_mb=8192)
-    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings, log=lambda *_: None)
-    job.objects = write_results(ctx.scene, job.extraction, job.leaves, job.leaves.emission)
+    job = cornell_job(target, levels, method="embree", rays=256, cache_mb=8192)
+    job.objects = write_results(job.bl_scene, job.extraction, job.leaves, job.leaves.emission)
     return job
 
 

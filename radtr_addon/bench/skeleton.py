@@ -23,22 +23,27 @@ def max_area_for(areas: np.ndarray, target: int, levels: int = 1) -> float:
     return min((lo, hi), key=lambda a: abs(estimate_leaf_count(areas, a, levels) - target))
 
 
-def run(quick: bool = False) -> list[dict]:
+def cornell_job(target: int, levels: int = 1, **settings):
+    """A SolveJob (set up, not solved) of the bundled Cornell box in a fresh file at about
+    ``target`` leaf patches after ``levels`` rounds; ``settings``: other ``Settings`` fields."""
     import bpy
 
     from ..blender.extract import extract, source_objects
     from ..blender.pipeline import Settings, SolveJob
     from ..cli import load_bundled
 
+    bpy.ops.wm.read_homefile(use_empty=True)
+    load_bundled("cornell_box").build(bpy)
+    ctx = bpy.context
+    base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
+    s = Settings(max_area=max_area_for(base.areas, target, levels), levels=levels, **settings)
+    return SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, s, log=lambda *_: None)
+
+
+def run(quick: bool = False) -> list[dict]:
     rows = []
     for target in ([896] if quick else [896, 3584]):
-        bpy.ops.wm.read_homefile(use_empty=True)
-        load_bundled("cornell_box").build(bpy)
-        ctx = bpy.context
-        base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
-        settings = Settings(max_area=max_area_for(base.areas, target), levels=1)
-        job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings,
-                       log=lambda *_: None)
+        job = cornell_job(target)
         job.run()
         job.finish()
         s = job.stats.seconds

@@ -41,22 +41,11 @@ GATHER_RAYS = (64, 256, 1024)
 
 
 def cornell_job(target: int, settings: FormFactorSettings, solver: str = "direct"):
-    """A SolveJob of the bundled Cornell box at about ``target`` triangles (fresh file)."""
-    import bpy
+    """A SolveJob of the Cornell box at about ``target`` triangles with these form factors."""
+    from .skeleton import cornell_job as job
 
-    from ..blender.extract import extract, source_objects
-    from ..blender.pipeline import Settings, SolveJob
-    from ..cli import load_bundled
-    from .skeleton import max_area_for
-
-    bpy.ops.wm.read_homefile(use_empty=True)
-    load_bundled("cornell_box").build(bpy)
-    ctx = bpy.context
-    base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
-    s = Settings(max_area=max_area_for(base.areas, target), method=settings.method,
-                 resolution=settings.resolution, split=settings.split, rays=settings.rays, solver=solver,
-                 tolerance=1e-9)
-    return SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, s, log=lambda *_: None)
+    return job(target, method=settings.method, resolution=settings.resolution, split=settings.split,
+               rays=settings.rays, solver=solver, tolerance=1e-9)
 
 
 # -- the seed's table --------------------------------------------------------------------------
