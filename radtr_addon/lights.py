@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .reconstruct import point_to_triangles
+from .formfactors.closed_form import point_to_triangles
 
 KINDS = ("POINT", "SPOT", "AREA", "SUN")
 SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
@@ -55,11 +55,18 @@ class Light:
     outline: np.ndarray | None = None  # an area light of any polygon (world space), e.g. an emitter's back
 
     @classmethod
+    def polygon_light(cls, name: str, polygon: np.ndarray, exitance: np.ndarray) -> "Light":
+        """An area light of ``polygon`` (counter-clockwise seen from the side it lights) with
+        exitance E (W/m^2): an emitting patch, or the back of one."""
+        fan = _fan(polygon)
+        area = 0.5 * np.linalg.norm(np.cross(fan[:, 1] - fan[:, 0], fan[:, 2] - fan[:, 0]), axis=1).sum()
+        peak = float(exitance.max())
+        return cls(name, "AREA", exitance / peak, peak * area, outline=np.array(polygon, float))
+
+    @classmethod
     def back_of(cls, name: str, triangle: np.ndarray, exitance: np.ndarray) -> "Light":
         """The back side of a two-sided emitting triangle (exitance E, W/m^2) as an area light."""
-        area = 0.5 * np.linalg.norm(np.cross(triangle[1] - triangle[0], triangle[2] - triangle[0]))
-        peak = float(exitance.max())
-        return cls(name, "AREA", exitance / peak, peak * area, outline=triangle[::-1].copy())
+        return cls.polygon_light(name, triangle[::-1], exitance)
 
     @property
     def position(self) -> np.ndarray:
@@ -182,35 +189,42 @@ def visibility(light: Light, points: np.ndarray, normals: np.ndarray, caster, sa
 PATCH_POINTS = np.array([[4, 1, 1], [1, 4, 1], [1, 1, 4], [2, 2, 2]]) / 6.0
 
 
-def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: float = 1e-3, caster=None):
-    """(H (n, 3), culled power (3,) W): the light of ``lights`` on the patches of ``scene``,
-    the mean over ``PATCH_POINTS`` of each patch."""
-    from .formfactors.raycast import EmbreeRays
-
-    H = np.zeros((scene.n, 3))
-    culled = np.zeros(3)
+def irradiance_at(points: np.ndarray, normals: np.ndarray, lights: list[Light], caster, *, samples: int = 16,
+                  cull: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """(H (k, 3), culled (k, 3)): the light of ``lights`` at points (already lifted off their
+    surface) facing unit ``normals``, and the unoccluded irradiance of the lights culled there."""
+    H = np.zeros((len(points), 3))
+    culled = np.zeros((len(points), 3))
     if not len(lights):
         return H, culled
-    caster = caster or EmbreeRays(scene, 1)
-    corners = scene.vertices[scene.triangles]                                # (n, 3, 3)
-    k = len(PATCH_POINTS)
-    normals = np.repeat(scene.normals, k, axis=0)
-    points = np.einsum("pc,ncd->npd", PATCH_POINTS, corners).reshape(-1, 3) + caster.epsilon * normals
-    area = np.repeat(scene.areas / k, k)
     bounds = np.array([unoccluded(light, points, normals) * light.color.max() for light in lights])
-    Hp = np.zeros((len(points), 3))
     brightest = bounds.max(axis=0)
     for light, bound in zip(lights, bounds):
         raw = bound / max(light.color.max(), 1e-300)
         keep = (bound > 0) & (bound >= cull * brightest)
         skipped = (bound > 0) & ~keep
-        culled += (raw[skipped] * area[skipped]).sum() * light.color
+        culled[skipped] += np.outer(raw[skipped], light.color)
         ids = np.flatnonzero(keep)
         if len(ids):
             vis = visibility(light, points[ids], normals[ids], caster, samples)
-            Hp[ids] += np.outer(raw[ids] * vis, light.color)
-    return Hp.reshape(scene.n, k, 3).mean(axis=1), culled
+            H[ids] += np.outer(raw[ids] * vis, light.color)
+    return H, culled
 
+
+def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: float = 1e-3, caster=None):
+    """(H (n, 3), culled power (3,) W): the light of ``lights`` on the patches of ``scene``,
+    the mean over ``PATCH_POINTS`` of each patch."""
+    from .formfactors.raycast import EmbreeRays
+
+    if not len(lights):
+        return np.zeros((scene.n, 3)), np.zeros(3)
+    caster = caster or EmbreeRays(scene, 1)
+    k = len(PATCH_POINTS)
+    normals = np.repeat(scene.normals, k, axis=0)
+    points = np.einsum("pc,ncd->npd", PATCH_POINTS, scene.vertices[scene.triangles]).reshape(-1, 3)
+    H, culled = irradiance_at(points + caster.epsilon * normals, normals, lights, caster, samples=samples, cull=cull)
+    area = np.repeat(scene.areas / k, k)
+    return H.reshape(scene.n, k, 3).mean(axis=1), (culled * area[:, None]).sum(axis=0)
 
 def equirect_lookup(image: np.ndarray):
     """Radiance by direction from an equirectangular image (h, w, 3), as Cycles maps it:

@@ -7,12 +7,12 @@ gather removes most of it. The irradiance at the point itself is
 
     H(p) = sum_emitters F(p -> j) V(p, j) E_j + sum_j F(p -> j) (B_j - E_j):
 
-light straight from emitters from the closed-form point-to-triangle form factor times the
-fraction V of shadow rays to stratified points on the emitter that arrive (no noise where
-an emitter is fully seen or hidden), plus the reflected light, which varies slowly, from
-cosine-weighted Embree rays. A vertex where another surface meets lies in that surface's
-plane, where half its rays would leave through it; ``inset_points`` moves such points a
-little into their own triangles first.
+light straight from emitters, each emitting patch taken as a polygon light (``lights``: the
+closed-form point-to-triangle form factor times the fraction V of shadow rays to stratified
+points on it that arrive, no noise where an emitter is fully seen or hidden), plus the
+reflected light, which varies slowly, from cosine-weighted Embree rays. A vertex where
+another surface meets lies in that surface's plane, where half its rays would leave through
+it; ``inset_points`` moves such points a little into their own triangles first.
 """
 from __future__ import annotations
 
@@ -21,8 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .formfactors.closed_form import point_to_polygon
-from .formfactors.raycast import EmbreeRays, _triangle_points
+from .formfactors.raycast import EmbreeRays
 
 #: Shadow rays per (point, emitter patch): a 4 x 4 stratified grid on the emitter.
 SHADOW_SAMPLES = 16
@@ -87,68 +86,20 @@ def inset_points(points: np.ndarray, centroids: np.ndarray, fraction: float = IN
     return points + fraction * (centroids - points)
 
 
-def point_to_triangles(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """Unoccluded form factors (P, J) from points facing ``normals`` to the fronts of triangles (J, 3, 3).
-
-    Lambert's contour integral, vectorised for triangles wholly in front of a point; those
-    cut by its tangent plane go through ``point_to_polygon`` (which clips), those behind or
-    facing away give 0.
-    """
-    rel = tris[None] - points[:, None, None]                          # (P, J, 3 corners, 3)
-    height = np.einsum("pjkc,pc->pjk", rel, normals)
-    tri_n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    facing = np.einsum("pjc,jc->pj", -rel[:, :, 0], tri_n) > 0         # the point sees the front
-    whole = facing & (height >= 0).all(axis=-1) & (height > 0).any(axis=-1)
-    cut = facing & ~whole & (height > 0).any(axis=-1)
-    r = rel / np.linalg.norm(rel, axis=-1, keepdims=True)
-    r2 = np.roll(r, -1, axis=2)
-    cross = np.cross(r, r2)
-    sin = np.linalg.norm(cross, axis=-1)
-    gamma = np.arctan2(sin, np.einsum("pjkc,pjkc->pjk", r, r2))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        terms = np.where(sin > 0, gamma * np.einsum("pjkc,pc->pjk", cross, normals) / sin, 0.0)
-    F = np.where(whole, np.abs(terms.sum(axis=-1)) / (2 * np.pi), 0.0)
-    for p, j in zip(*np.nonzero(cut)):
-        F[p, j] = point_to_polygon(points[p], normals[p], tris[j])
-    return F
-
-
-def _visible_fraction(caster: EmbreeRays, points, normals, pairs, targets) -> np.ndarray:
-    """Fraction of shadow rays from points[pairs[0]] to targets[pairs[1]] (J, S, 3) that arrive,
-    among those above the point's horizon (the form factor already clips the part below)."""
-    p, j = pairs
-    d = targets[j] - points[p][:, None]                               # (M, S, 3)
-    dist = np.linalg.norm(d, axis=-1)
-    d = d / np.maximum(dist, 1e-300)[..., None]
-    origins = np.broadcast_to(points[p][:, None], d.shape).reshape(-1, 3)
-    clear = caster.reaches(origins, d.reshape(-1, 3), dist.ravel() * (1 - 1e-5)).reshape(dist.shape)
-    above = np.einsum("msc,mc->ms", d, normals[p]) > 0
-    seen = (clear & above).sum(axis=1)
-    return seen / np.maximum(above.sum(axis=1), 1)
-
-
 def gather(scene, B: np.ndarray, points: np.ndarray, normals: np.ndarray, rays: int = 256,
            seed: int = 0, caster: EmbreeRays | None = None) -> np.ndarray:
     """Irradiance (k, 3) at ``points`` facing unit ``normals`` from the patches of ``scene`` at radiosity B."""
+    from .lights import Light, irradiance_at
+
     caster = caster or EmbreeRays(scene, rays, seed)
     points, normals = np.asarray(points, float), np.asarray(normals, float)
-    lifted = points + caster.epsilon * normals
     reflected = B - scene.emission
     H = np.zeros((len(points), 3))
     for k, row in enumerate(caster.point_rows(points, normals)):
         H[k] = row.values @ reflected[row.indices]
     emitters = np.flatnonzero(scene.emission.max(axis=1) > 0)
     if len(emitters):
-        tris = caster.tris[emitters]
-        m = int(np.sqrt(SHADOW_SAMPLES))
-        cells = np.arange(m * m)
-        u, v = (cells // m + 0.5) / m, (cells % m + 0.5) / m
-        targets = _triangle_points(tris, np.broadcast_to(u, (len(tris), m * m)), np.broadcast_to(v, (len(tris), m * m)))
-        for start in range(0, len(points), 512):
-            block = slice(start, start + 512)
-            F = point_to_triangles(lifted[block], normals[block], tris)
-            pairs = np.nonzero(F > 0)
-            if len(pairs[0]):
-                F[pairs] *= _visible_fraction(caster, lifted[block], normals[block], pairs, targets)
-            H[block] += F @ scene.emission[emitters]
+        lights = [Light.polygon_light(f"patch {i}", caster.tris[i], scene.emission[i]) for i in emitters]
+        H += irradiance_at(points + caster.epsilon * normals, normals, lights, caster, samples=SHADOW_SAMPLES,
+                           cull=0.0)[0]
     return H

@@ -89,8 +89,8 @@ def test_final_gather_takes_direct_light_from_the_closed_form():
     """An emitting square seen whole: the direct part is exact with any ray count."""
     from geometry import squares
 
-    from radtr_addon.formfactors.closed_form import point_to_polygon
-    from radtr_addon.reconstruct import gather, point_to_triangles
+    from radtr_addon.formfactors.closed_form import point_to_polygon, point_to_triangles
+    from radtr_addon.reconstruct import gather
 
     s = squares()
     s.emission[2:] = [1.0, 2.0, 3.0]

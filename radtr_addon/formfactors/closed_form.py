@@ -3,6 +3,7 @@
 - ``point_to_polygon``: differential area at p with normal n to a planar polygon, by
   Lambert's contour integral F = (1 / 2 pi) sum_k gamma_k (n . unit(R_k x R_k+1)), after
   clipping the polygon to the half-space in front of the point.
+- ``point_to_triangles``: the same for many points and triangles at once (vectorised).
 - ``parallel_rectangles`` and ``perpendicular_rectangles``: the catalogue closed forms
   (Howell, configurations C-11 and C-14).
 - ``polygon_to_polygon``: area-to-area form factor of two planar polygons by Stokes' double
@@ -135,3 +136,29 @@ def polygon_to_polygon(poly1, poly2) -> float:
                 continue
             total += dot * le * (weights @ _segment_log_integral(pts, c, f, lf))
     return float(abs(total) / (2 * np.pi * area1))
+
+
+def point_to_triangles(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Unoccluded form factors (P, J) from points facing ``normals`` to the fronts of triangles (J, 3, 3).
+
+    Lambert's contour integral, vectorised for triangles wholly in front of a point; those
+    cut by its tangent plane go through ``point_to_polygon`` (which clips), those behind or
+    facing away give 0.
+    """
+    rel = tris[None] - points[:, None, None]                          # (P, J, 3 corners, 3)
+    height = np.einsum("pjkc,pc->pjk", rel, normals)
+    tri_n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    facing = np.einsum("pjc,jc->pj", -rel[:, :, 0], tri_n) > 0         # the point sees the front
+    whole = facing & (height >= 0).all(axis=-1) & (height > 0).any(axis=-1)
+    cut = facing & ~whole & (height > 0).any(axis=-1)
+    r = rel / np.linalg.norm(rel, axis=-1, keepdims=True)
+    r2 = np.roll(r, -1, axis=2)
+    cross = np.cross(r, r2)
+    sin = np.linalg.norm(cross, axis=-1)
+    gamma = np.arctan2(sin, np.einsum("pjkc,pjkc->pjk", r, r2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        terms = np.where(sin > 0, gamma * np.einsum("pjkc,pc->pjk", cross, normals) / sin, 0.0)
+    F = np.where(whole, np.abs(terms.sum(axis=-1)) / (2 * np.pi), 0.0)
+    for p, j in zip(*np.nonzero(cut)):
+        F[p, j] = point_to_polygon(points[p], normals[p], tris[j])
+    return F
