@@ -8,7 +8,7 @@ from radtr_addon.errors import SceneError
 from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
 from radtr_addon.hierarchy import subdivide
 from radtr_addon.lowrank import build
-from radtr_addon.lowrank.backends import BACKENDS, make_backend
+from radtr_addon.lowrank.backends import BACKENDS, make_backend, opencl_build_error, unavailable
 from radtr_addon.lowrank.cache import cached_build
 from radtr_addon.lowrank.flashlight import Flashlight, Spot, spot_irradiance
 from radtr_addon.scene import PatchScene
@@ -61,6 +61,8 @@ def test_a_cut_must_cover_every_patch_once(box):
 @pytest.mark.parametrize("name", sorted(BACKENDS))
 @pytest.mark.parametrize("mono", [False, True])
 def test_backends_match_numpy_float64(box, name, mono):
+    if unavailable(name):
+        pytest.skip(f"{name} back-end unavailable here: {unavailable(name)}")
     h, rows = box
     lr = build(h, rows, h.levels - 1)
     lr = lr.monochrome() if mono else lr
@@ -69,6 +71,23 @@ def test_backends_match_numpy_float64(box, name, mono):
     ref = lr.solve(E)
     got = make_backend(name, lr, np.float32).solve(E)
     assert np.abs(got - ref).max() <= 1e-5 * np.abs(ref).max()
+
+
+def test_a_backend_that_cannot_build_is_reported_with_the_reason_and_falls_back(box, monkeypatch):
+    from radtr_addon.lowrank import backends
+
+    reason = opencl_build_error("__kernel void product(__global REAL *U) { this is not C; }")
+    assert reason and "Error" in reason
+    monkeypatch.setitem(backends._UNAVAILABLE, "opencl", reason)
+    h, rows = box
+    lr = build(h, rows, h.levels - 1)
+    with pytest.raises(backends.BackendUnavailable, match="opencl back-end is unavailable"):
+        make_backend("opencl", lr)
+    said = []
+    fallback = make_backend("opencl", lr, fallback=True, warn=said.append)
+    assert isinstance(fallback, backends.NumpyBackend) and "using numpy instead" in said[0]
+    E = np.ones((lr.n, lr.channels))
+    np.testing.assert_allclose(fallback.solve(E), lr.solve(E), rtol=1e-5)
 
 
 def test_refuses_a_level_that_does_not_fit_and_names_one_that_does(box):

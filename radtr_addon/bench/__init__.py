@@ -7,9 +7,9 @@ from ..errors import RadTRError
 
 
 def print_table(rows: list[dict]):
-    """Print ``rows`` (dicts with the same keys) as an aligned text table."""
-    keys = list(rows[0])
-    cells = [[_fmt(r[k]) for k in keys] for r in rows]
+    """Print ``rows`` (dicts) as an aligned text table; a key a row lacks is a blank cell."""
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    cells = [[_fmt(r.get(k, "")) for k in keys] for r in rows]
     widths = [max(len(k), *(len(c[i]) for c in cells)) for i, k in enumerate(keys)]
     print("  ".join(k.rjust(w) for k, w in zip(keys, widths)))
     for c in cells:

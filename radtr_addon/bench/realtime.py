@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from ..lowrank import build
-from ..lowrank.backends import BACKENDS
+from ..lowrank.backends import BACKENDS, unavailable
 from ..lowrank.flashlight import Flashlight, Spot
 
 SIZES = (3584, 10000, 50000, 100000)
@@ -102,6 +102,10 @@ def run(quick: bool = False) -> dict[str, list[dict]]:
                     "seed": SEED.get(target, "")})
         bound = read_bound_ms(lowrank.U)
         for backend in BACKENDS:
+            if unavailable(backend):
+                per_frame.append({"patches": job.leaves.n, "backend": backend,
+                                  "skipped": f"unavailable: {unavailable(backend)}"})
+                continue
             for mono in (False, True):
                 per_frame.append({"patches": job.leaves.n, "clusters": lowrank.k,
                                   **frames(job, lowrank, backend, mono), "bound_ms": round(bound, 2)})

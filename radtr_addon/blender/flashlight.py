@@ -171,4 +171,5 @@ def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_
     level = min(level, job.hierarchy.levels)
     lowrank, hit = cached_build(job.hierarchy, job.rows, level, folder or cache_folder(),
                                 ff_label=job.rows.settings.label(), refine_to=refine_to, warnings=warnings)
-    return Flashlight(job.leaves, lowrank, backend, user=user), LiveMeshes(job.objects, job.leaves), warnings, hit
+    light = Flashlight(job.leaves, lowrank, backend, user=user, warn=warnings.append)
+    return light, LiveMeshes(job.objects, job.leaves), warnings, hit

@@ -3,7 +3,10 @@
 A back-end is a class taking a ``LowRank`` (and a dtype) whose ``solve(E)`` returns B.
 The small k-sized part (V^T E and the LU solves) stays on the CPU in every back-end; what
 differs is where U lives and who multiplies it. ``register(name, cls)`` adds one (the seed's
-MATLAB slot): ``BACKENDS`` is what the bench and the flashlight offer.
+MATLAB slot): ``BACKENDS`` is what the bench and the flashlight offer. A back-end class may
+have a ``probe()`` returning why it cannot run on this machine (None when it can):
+``unavailable(name)`` asks it once, and ``make_backend(..., fallback=True)`` then falls back
+to numpy with that reason as a warning instead of failing.
 """
 from __future__ import annotations
 
@@ -11,21 +14,46 @@ import time
 
 import numpy as np
 
-from ..errors import SettingsError
+from ..errors import RadTRError, SettingsError
 
 BACKENDS: dict[str, type] = {}
+_UNAVAILABLE: dict[str, str | None] = {}
+
+
+class BackendUnavailable(RadTRError):
+    """A back-end that cannot run on this machine (the message says why)."""
 
 
 def register(name: str, cls: type):
     BACKENDS[name] = cls
 
 
-def make_backend(name: str, lowrank, dtype=np.float32, user: str = ""):
-    """Back-end ``name``; "user" calls your function ``user`` (``solvers.user``) every frame."""
+def unavailable(name: str) -> str | None:
+    """Why back-end ``name`` cannot run here, or None when it can (probed once per process)."""
+    if name not in _UNAVAILABLE:
+        probe = getattr(BACKENDS[name], "probe", None)
+        _UNAVAILABLE[name] = probe() if probe else None
+    return _UNAVAILABLE[name]
+
+
+def make_backend(name: str, lowrank, dtype=np.float32, user: str = "", fallback: bool = False, warn=None):
+    """Back-end ``name``; "user" calls your function ``user`` (``solvers.user``) every frame.
+
+    An unavailable back-end raises ``BackendUnavailable`` with the reason, or with
+    ``fallback`` gives the numpy one and passes the reason to ``warn(message)``.
+    """
     if name == "user":
         return UserBackend(lowrank, dtype, user)
     if name not in BACKENDS:
         raise SettingsError(f"low-rank back-end must be one of {', '.join(BACKENDS)} or user, got '{name}'")
+    reason = unavailable(name)
+    if reason is not None:
+        message = f"the {name} back-end is unavailable on this machine: {reason}"
+        if not fallback:
+            raise BackendUnavailable(message)
+        if warn is not None:
+            warn(f"{message}; using numpy instead")
+        name = "numpy"
     return BACKENDS[name](lowrank, dtype)
 
 
@@ -96,9 +124,29 @@ __kernel void product(__global const REAL *U, __global const REAL *Z, __global c
 """
 
 
+def opencl_build_error(source: str = _KERNEL) -> str | None:
+    """Why ``source`` cannot be built for an OpenCL device here (float and double), or None.
+
+    PoCL compiles for the CPU that its LLVM detects; on a CPU that LLVM cannot name the
+    build fails ("unknown target CPU 'generic'"), and that message is the reason returned.
+    """
+    try:
+        import pyopencl as cl
+
+        ctx = cl.create_some_context(interactive=False)
+        for real in ("float", "double"):
+            cl.Program(ctx, source.replace("REAL", real)).build()
+    except Exception as exc:            # any failure of the driver stack means "cannot run here"
+        first = " ".join(str(exc).split())[:300]
+        return f"{type(exc).__name__}: {first}"
+    return None
+
+
 class OpenCLBackend:
     """U in an OpenCL device's memory (PoCL on the CPU here, a GPU where present); one kernel
     per frame, one work-item per patch."""
+
+    probe = staticmethod(opencl_build_error)
 
     def __init__(self, lowrank, dtype=np.float32):
         import pyopencl as cl

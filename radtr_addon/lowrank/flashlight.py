@@ -41,10 +41,17 @@ def spot_irradiance(scene, spot: Spot, caster) -> np.ndarray:
     return H
 
 
+def _name_of(backend) -> str:
+    """The registered name of a back-end object (after a fallback it is not the one asked for)."""
+    from .backends import BACKENDS
+
+    return next(name for name, cls in BACKENDS.items() if type(backend) is cls)
+
+
 class Flashlight:
     """Per-frame B for spots over a solved patch scene, colour or mono, on a chosen back-end."""
 
-    def __init__(self, scene, lowrank, backend: str = "numpy", dtype=np.float32, user: str = ""):
+    def __init__(self, scene, lowrank, backend: str = "numpy", dtype=np.float32, user: str = "", warn=None):
         from ..formfactors.raycast import EmbreeRays
 
         self.scene, self.backend_name, self.dtype, self.user = scene, backend, dtype, user
@@ -52,7 +59,8 @@ class Flashlight:
         self._colour = lowrank
         self._mono = None
         self.mono = False
-        self.backend = make_backend(backend, lowrank, dtype, user)
+        self.backend = make_backend(backend, lowrank, dtype, user, fallback=True, warn=warn)
+        self.backend_name = self.backend_name if self.backend_name == "user" else _name_of(self.backend)
         self.seconds = {"visibility": 0.0, "solve": 0.0}
         self.frames = 0
 
