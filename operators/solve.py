@@ -7,7 +7,7 @@ Continue takes the last solve of this session further when it stopped at its ite
 import bpy
 
 from ..radtr_addon.blender.pipeline import SolveJob, solve
-from ..radtr_addon.errors import RadTRError
+from ..radtr_addon.errors import user_message
 
 #: The solve running in this session (read by the panel's live readout) and the last one finished.
 running = {"job": None, "last": None}
@@ -37,6 +37,7 @@ class _ModalSolve:
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        going_on = False
         try:
             done = job.advance(0.1)
             context.window_manager.progress_update(int(100 * job.fraction))
@@ -45,24 +46,26 @@ class _ModalSolve:
                 if area.type == "VIEW_3D":
                     area.tag_redraw()
             if not done:
+                going_on = True
                 return {"RUNNING_MODAL"}
             job.finish()
-        except RadTRError as exc:
-            self._end(context)
-            self.report({"ERROR"}, str(exc))
+        except Exception as exc:
+            self.report({"ERROR"}, user_message(exc))
             return {"CANCELLED"}
-        self._end(context)
+        finally:
+            if not going_on:
+                self._end(context)
         running["last"] = job
         _report_warnings(self, job)
         self.report({"INFO"}, f"RadTR: {job.summary()}")
         return {"FINISHED"}
 
     def _end(self, context):
+        running["job"] = None
         wm = context.window_manager
         wm.event_timer_remove(self._timer)
         wm.progress_end()
         context.workspace.status_text_set(None)
-        running["job"] = None
 
 
 class RADTR_OT_solve(_ModalSolve, bpy.types.Operator):
@@ -79,8 +82,8 @@ class RADTR_OT_solve(_ModalSolve, bpy.types.Operator):
     def execute(self, context):
         try:
             job = solve(context, context.scene.radtr.to_settings())
-        except RadTRError as exc:
-            self.report({"ERROR"}, str(exc))
+        except Exception as exc:
+            self.report({"ERROR"}, user_message(exc))
             return {"CANCELLED"}
         running["last"] = job
         _report_warnings(self, job)
@@ -93,8 +96,8 @@ class RADTR_OT_solve(_ModalSolve, bpy.types.Operator):
         try:
             job = SolveJob(context.scene, context.evaluated_depsgraph_get(), context.view_layer,
                            context.scene.radtr.to_settings())
-        except RadTRError as exc:
-            self.report({"ERROR"}, str(exc))
+        except Exception as exc:
+            self.report({"ERROR"}, user_message(exc))
             return {"CANCELLED"}
         return self._start(context, job)
 
@@ -125,8 +128,8 @@ class RADTR_OT_resume(_ModalSolve, bpy.types.Operator):
         try:
             job.run()
             job.finish()
-        except RadTRError as exc:
-            self.report({"ERROR"}, str(exc))
+        except Exception as exc:
+            self.report({"ERROR"}, user_message(exc))
             return {"CANCELLED"}
         self.report({"INFO"}, f"RadTR: {job.summary()}")
         return {"FINISHED"}

@@ -11,7 +11,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from .errors import RadTRError
+from .errors import RadTRError, user_message
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -259,6 +259,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except RadTRError as exc:
-        print(f"RadTR error: {exc}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("RadTR: cancelled", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        print(f"RadTR error: {user_message(exc)}", file=sys.stderr)
         return 2

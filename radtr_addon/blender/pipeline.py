@@ -22,7 +22,7 @@ from ..solvers import make_solver
 from ..textures import varying_reflectance
 from .extract import extract, source_objects
 from .lights import scene_lights, world_radiance
-from .write import write_results
+from .write import check_replaceable, write_results
 
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
 AUTO_PATCHES = 2000
@@ -81,6 +81,8 @@ class SolveJob:
         self.stats = Stats()
         with self._stage("extract"):
             objects = source_objects(bl_scene, view_layer)
+            if settings.mode == "REPLACE":
+                check_replaceable(objects)
             self.extraction = extract(depsgraph, objects, settings.max_reflectance)
         for w in self.extraction.warnings:
             log(f"RadTR warning: {w}")

@@ -122,12 +122,11 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", ve
     """
     import bpy
 
-    from ..errors import SceneError
-
-    if mode == "REPLACE" and any(src.instance for src in extraction.objects):
-        raise SceneError("Result: Replace cannot write into instances; use Copies")
+    if mode == "REPLACE":
+        check_replaceable(extraction.objects)
     vertex_values = vertex_values or VertexRadiosity(leaves, B)
     meshes = []
+    existing = set(bpy.data.meshes.keys())
     try:
         for k, obj in enumerate(extraction.objects):
             sel = np.flatnonzero(leaves.object_index == k)
@@ -137,9 +136,11 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", ve
             mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, part, B[sel], vertex_values(part),
                               leaves.emission[sel])
             meshes.append((obj, mesh))
+            if mode == "REPLACE":
+                _to_local(mesh, obj.matrix)
         material = display_material(exposure) if mode == "COPY" else None
-    except Exception:
-        for _, mesh in meshes:
+    except BaseException:
+        for mesh in [m for m in bpy.data.meshes if m.name not in existing]:
             bpy.data.meshes.remove(mesh)
         raise
     clear_results(bl_scene, unhide=False)
@@ -168,15 +169,33 @@ def _link_copies(bl_scene, meshes, material):
     return out
 
 
+def check_replaceable(sources):
+    """Raise SceneError when Result: Replace cannot write into a source (an instance, or an
+    object whose world matrix flattens an axis, so its mesh has no local coordinates)."""
+    from ..errors import SceneError
+
+    for src in sources:
+        if src.instance:
+            raise SceneError(f"Result: Replace cannot write into instances ('{src.name}'); use Copies")
+        axes = np.linalg.norm(src.matrix[:3, :3], axis=0)
+        if axes.min() == 0 or abs(np.linalg.det(src.matrix[:3, :3])) < 1e-9 * axes.prod():
+            raise SceneError(f"object '{src.name}' has a zero scale along an axis; Result: Replace cannot "
+                             f"write its mesh in its own coordinates: fix the scale or use Copies")
+
+
+def _to_local(mesh, matrix: np.ndarray):
+    """Move ``mesh``'s world-space vertices into the coordinates of an object at ``matrix``."""
+    inv = np.linalg.inv(matrix)
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3) @ inv[:3, :3].T + inv[:3, 3]
+    mesh.vertices.foreach_set("co", co.astype(np.float32).ravel())
+
+
 def _replace(meshes):
     out = []
     for source, mesh in meshes:
         src = source.owner
-        inv = np.array(src.matrix_world.inverted())
-        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", co)
-        co = co.reshape(-1, 3) @ inv[:3, :3].T + inv[:3, 3]
-        mesh.vertices.foreach_set("co", co.astype(np.float32).ravel())
         for mat in src.data.materials:
             mesh.materials.append(mat)
         src.modifiers.clear()

@@ -15,12 +15,11 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import traceback
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import RadTRError
+from ..errors import RadTRError, describe
 from .direct import DirectSolver
 
 
@@ -46,18 +45,11 @@ def load_user_solver(spec: str):
     except UserSolverError:
         raise
     except Exception as exc:
-        raise UserSolverError(f"user solver '{spec}': loading it raised {_describe(exc)}") from None
+        raise UserSolverError(f"user solver '{spec}': loading it raised {describe(exc)}") from None
     fn = getattr(module, func, None)
     if not callable(fn):
         raise UserSolverError(f"user solver '{spec}': the module has no function '{func}'")
     return fn
-
-
-def _describe(exc: BaseException) -> str:
-    """'Type: message (file:line)' of the innermost frame, for a one-line report."""
-    tb = traceback.extract_tb(exc.__traceback__)
-    where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
-    return f"{type(exc).__name__}: {exc}{where}"
 
 
 def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
@@ -65,7 +57,7 @@ def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
     try:
         B = fn(**problem)
     except Exception as exc:
-        raise UserSolverError(f"user solver '{spec}' raised {_describe(exc)}") from None
+        raise UserSolverError(f"user solver '{spec}' raised {describe(exc)}") from None
     try:
         B = np.asarray(B, dtype=float)
     except (TypeError, ValueError):
