@@ -117,6 +117,10 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         items=[("paraboloid", "Paraboloid", "The hemisphere map the paraboloid method draws"),
                ("hemicube", "Hemicube", "The unfolded hemicube"),
                ("sky", "Sky", "The sky's parallel view from the dome point along the patch's normal")])
+    cache_mb: IntProperty(
+        name="Memory Budget (MB)", default=_D.cache_mb, min=1,
+        description="Memory the form factors and the largest work arrays may take; larger work is "
+                    "refused, with the size it needs, before it starts")
     mode: EnumProperty(
         name="Result", default=_D.mode,
         items=[("COPY", "Copies", "Subdivided copies in a 'RadTR' collection; sources hidden"),
@@ -130,7 +134,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                         max_iterations=self.max_iterations,
                         precision=self.precision, ambient=self.ambient, gather_rays=self.gather_rays,
                         max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode,
-                        sky=self.sky, sky_radiance=self.sky_radiance, sky_step=self.sky_step)
+                        sky=self.sky, sky_radiance=self.sky_radiance, sky_step=self.sky_step,
+                        cache_mb=self.cache_mb)
 
 
 _register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_settings,))

@@ -46,6 +46,7 @@ class RADTR_PT_main(bpy.types.Panel):
             col.prop(s, "sky_radiance")
             col.prop(s, "sky_step")
         col.prop(s, "max_reflectance")
+        col.prop(s, "cache_mb")
         col.prop(s, "mode", expand=True)
         row = col.row(align=True)
         row.operator("radtr.solve", icon="LIGHT_SUN")

@@ -11,7 +11,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from .errors import RadTRError, user_message
+from .errors import RadTRError, SettingsError, user_message
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -79,6 +79,7 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--sky-step", type=float, default=d.sky_step, help="dome step in degrees (alpha = beta)")
     p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
     p.add_argument("--exposure", type=float, default=d.exposure)
+    p.add_argument("--cache-mb", type=int, default=d.cache_mb, help="memory budget for form factors and work arrays")
 
 
 def settings_from(args):
@@ -90,7 +91,25 @@ def settings_from(args):
                     max_iterations=args.iterations,
                     precision=args.precision, ambient=args.ambient, gather_rays=args.gather_rays,
                     max_reflectance=args.max_reflectance, exposure=args.exposure, sky=args.sky,
-                    sky_radiance=args.sky_radiance, sky_step=args.sky_step)
+                    sky_radiance=args.sky_radiance, sky_step=args.sky_step, cache_mb=args.cache_mb)
+
+
+def check_args(args):
+    """Settings, flashlight level and output paths checked before any work."""
+    if not hasattr(args, "levels"):
+        return
+    settings_from(args).validate()
+    level = getattr(args, "level", None)
+    if level is not None and not 0 <= level <= args.levels:
+        raise SettingsError(f"--level {level} is not a level of the hierarchy: 0..{args.levels} "
+                            f"with --levels {args.levels}")
+    for flag in ("out", "render"):
+        path = getattr(args, flag, None)
+        if path and not Path(path).resolve().parent.is_dir():
+            raise SettingsError(f"--{flag} {path}: the folder {Path(path).resolve().parent} does not exist")
+    out_dir = getattr(args, "out_dir", None)
+    if out_dir and Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise SettingsError(f"--out-dir {out_dir} is a file, not a folder")
 
 
 def cmd_solve(args) -> int:
@@ -132,6 +151,11 @@ def read_spots(path: str, scene) -> list:
             spots.append(spot)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise RadTRError(f"{path}: not a list of poses with position and direction ({exc})") from None
+    for k, spot in enumerate(spots):
+        values = np.concatenate([spot.position, spot.direction, spot.color, [spot.angle, spot.intensity]])
+        if not np.isfinite(values).all() or spot.intensity < 0 or spot.color.min() < 0:
+            raise RadTRError(f"{path}: pose {k} has a NaN, infinite or negative value (intensity "
+                             f"{spot.intensity:g}, colour {spot.color.tolist()})")
     if not spots:
         raise RadTRError(f"{path}: no poses")
     return spots
@@ -258,6 +282,7 @@ def main(argv=None) -> int:
     b.set_defaults(func=cmd_bench)
     args = parser.parse_args(argv)
     try:
+        check_args(args)
         return args.func(args)
     except KeyboardInterrupt:
         print("RadTR: cancelled", file=sys.stderr)

@@ -40,6 +40,12 @@ class SkyFactors:
         return np.asarray(self.S.T @ (L * self.solid_angles[:, None]))
 
 
+def dome_size(alpha: float, beta: float) -> int:
+    """How many points ``dome(alpha, beta)`` has."""
+    a, b = np.radians(alpha), np.radians(beta)
+    return int(np.ceil(np.pi / 2 / b)) * int(round(2 * np.pi / a))
+
+
 def dome(alpha: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
     """(directions (p, 3), solid angles (p,)) of dome points every alpha x beta degrees."""
     if not (0 < alpha <= 360 and 0 < beta <= 90):

@@ -1,12 +1,14 @@
 """Bad and extreme input: each case gets a clear error naming what is wrong, and a failure
 leaves the Blender file as it was (object and mesh names, meshes' data and modifiers)."""
+import json
+import re
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from radtr_addon.blender.pipeline import Settings, solve
-from radtr_addon.errors import SceneError
+from radtr_addon.errors import InputFileError, RadTRError, SceneError, SettingsError
 
 FAST = dict(max_area=0.01, method="embree", rays=16, tolerance=1e-2)
 
@@ -89,3 +91,121 @@ def test_modal_solve_that_raises_is_cleared_and_reported(addon, cornell):
     assert reports == [({"ERROR"}, reports[0][1])]
     assert reports[0][1].startswith("unexpected error: ZeroDivisionError: division by zero (test_reliability.py:")
     assert op.RADTR_OT_solve.poll(cornell.context)
+
+
+# -- bad settings ------------------------------------------------------------------------------
+
+NAN = float("nan")
+
+
+@pytest.mark.parametrize("kw, message", [
+    (dict(max_reflectance=NAN), "max reflectance must be between 0 and 1, got nan"),
+    (dict(max_reflectance=-1.0), "max reflectance must be between 0 and 1, got -1.0"),
+    (dict(sky="uniform", sky_radiance=NAN), "sky radiance must be 0 or more, got nan"),
+    (dict(gather_rays=-4), r"gather rays must be 0 \(patch mean\) or more, got -4"),
+    (dict(exposure=NAN), "exposure must be 0 or more, got nan"),
+    (dict(exposure=-2.0), "exposure must be 0 or more, got -2.0"),
+    (dict(tolerance=NAN), "tolerance must be 0 or more, got nan"),
+    (dict(max_area=NAN), r"max area must be 0 \(auto\) or more, got nan"),
+    (dict(sky_step=0.0), "sky step must be above 0 and at most 90 degrees, got 0.0"),
+    (dict(resolution=16384), r"a hemicube view of 805,306,368 pixels \(resolution 16384\) needs 60.0 GiB, "
+                             r"over the memory budget of 2,048 MB \(raise the budget"),
+    (dict(method="paraboloid", resolution=16384), "a paraboloid view of 268,435,456 pixels .* needs 20.0 GiB"),
+    (dict(method="embree", rays=400_000_000), "casting 400,000,000 rays per patch needs 59.6 GiB"),
+    (dict(gather_rays=100_000_000), "gathering 100,000,000 rays per vertex needs 14.9 GiB"),
+    (dict(sky="uniform", sky_step=0.001), r"a sky dome of 32,400,000,000 points \(step 0.001 degrees\) needs"),
+])
+def test_bad_settings_are_refused_naming_the_setting(kw, message):
+    with pytest.raises(SettingsError, match=message):
+        Settings(**kw).validate()
+
+
+def test_the_memory_budget_can_be_raised():
+    with pytest.raises(SettingsError, match="casting 16,000,000 rays per patch needs 2.4 GiB"):
+        Settings(method="embree", rays=16_000_000).validate()
+    Settings(method="embree", rays=16_000_000, cache_mb=4096).validate()
+
+
+def test_sky_form_factors_over_the_budget_are_refused_with_the_patch_count(cornell):
+    bpy = cornell
+    before = state(bpy)
+    with pytest.raises(SettingsError, match=r"a sky dome of 8,100 points \(step 2 degrees\) x [\d,]+ patches needs"):
+        solve(bpy.context, Settings(sky="uniform", sky_step=2.0, cache_mb=20, **FAST), log=quiet)
+    assert state(bpy) == before
+
+
+def test_operator_refuses_huge_work_before_starting(cornell):
+    from test_addon import small
+
+    bpy = cornell
+    small(bpy, method="embree", rays=400_000_000)
+    before = state(bpy)
+    with pytest.raises(RuntimeError, match="casting 400,000,000 rays per patch needs 59.6 GiB"):
+        bpy.ops.radtr.solve()
+    assert state(bpy) == before
+
+
+def poses(tmp_path, **pose):
+    path = tmp_path / "poses.json"
+    path.write_text(json.dumps([{"position": [0.3, 0.3, 0.3], "direction": [0, 0, -1], **pose}]))
+    return str(path)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["solve", "cornell_box", "--max-reflectance", "nan"], "max reflectance must be between 0 and 1, got nan"),
+    (["solve", "cornell_box", "--sky", "cie", "--sky-radiance", "nan"], "sky radiance must be 0 or more, got nan"),
+    (["solve", "cornell_box", "--gather-rays", "-1"], "gather rays must be 0 .* got -1"),
+    (["solve", "cornell_box", "--exposure", "-1"], "exposure must be 0 or more, got -1.0"),
+    (["solve", "cornell_box", "--sky", "uniform", "--sky-step", "0.001"], "a sky dome of 32,400,000,000 points"),
+    (["solve", "cornell_box", "--out", "{tmp}/missing/r.blend"], "--out .*: the folder .*missing does not exist"),
+    (["solve", "cornell_box", "--render", "{tmp}/missing/r.png"], "--render .*: the folder .*missing does not exist"),
+    (["export", "cornell_box", "--out", "{tmp}/missing/f.npz"], "--out .*: the folder .*missing does not exist"),
+    (["sequence", "cornell_box", "--prefix", "e", "--to", "2", "--out-dir", "{tmp}/poses.json"],
+     "--out-dir .*poses.json is a file, not a folder"),
+    (["flashlight", "cornell_box", "--poses", "{poses}", "--levels", "2", "--level", "9"],
+     r"--level 9 is not a level of the hierarchy: 0..2 with --levels 2"),
+])
+def test_cli_refuses_bad_settings_and_paths_before_any_work(cornell, tmp_path, capsys, args, message):
+    from radtr_addon.cli import main
+
+    bpy = cornell
+    before = state(bpy)
+    fill = {"tmp": tmp_path, "poses": poses(tmp_path)}
+    assert main([a.format(**fill) for a in args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("RadTR error: ") and re.search(message, err), err
+    assert state(bpy) == before                 # nothing was opened, solved or written
+
+
+def test_flashlight_pose_with_nan_intensity_is_refused(tmp_path):
+    from geometry import cube
+
+    from radtr_addon.cli import read_spots
+
+    with pytest.raises(RadTRError, match=r"poses.json: pose 0 has a NaN, infinite or negative value \(intensity nan"):
+        read_spots(poses(tmp_path, intensity=NAN), cube())
+
+
+def test_flashlight_level_beyond_the_hierarchy_is_an_error(cornell, tmp_path):
+    from radtr_addon.blender.flashlight import flashlight_for
+
+    job = solve(cornell.context, Settings(levels=1, **FAST), log=quiet)
+    with pytest.raises(SettingsError, match=r"low-rank level 3 is not a level of the hierarchy: 0..1"):
+        flashlight_for(job, 3, folder=tmp_path)
+
+
+def test_low_rank_cache_paths_that_are_not_what_they_should_be(tmp_path):
+    from geometry import cube
+
+    from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
+    from radtr_addon.hierarchy import subdivide
+    from radtr_addon.lowrank.cache import cache_key, cached_build
+
+    h = subdivide(cube(), 0.1, 1)
+    rows = FormFactors(h.leaves, FormFactorSettings("embree", rays=16))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InputFileError, match="the low-rank cache folder .*file is a file"):
+        cached_build(h, rows, 1, tmp_path / "file", ff_label=rows.settings.label())
+    (tmp_path / f"lowrank-{cache_key(h, 1, rows.settings.label(), np.float64)}.npz").mkdir()
+    with pytest.raises(InputFileError, match="the low-rank cache file .*npz is a folder: remove it"):
+        cached_build(h, rows, 1, tmp_path, ff_label=rows.settings.label())

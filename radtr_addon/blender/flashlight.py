@@ -161,14 +161,16 @@ def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_
     """A Flashlight over a finished SolveJob: low-rank factors of ``level``, refined to
     ``refine_to`` clusters where the light is when that is more (cached), and the meshes to
     write to. Returns (flashlight, meshes, warnings, read_from_cache)."""
-    from ..errors import SceneError
+    from ..errors import SceneError, SettingsError
     from ..lowrank.cache import cached_build
     from ..lowrank.flashlight import Flashlight
 
     if not job.objects:
         raise SceneError("solve the scene first: the flashlight relights its result meshes")
+    if not 0 <= level <= job.hierarchy.levels:
+        raise SettingsError(f"low-rank level {level} is not a level of the hierarchy: 0..{job.hierarchy.levels}; "
+                            f"lower the level or solve with more Levels")
     warnings: list[str] = []
-    level = min(level, job.hierarchy.levels)
     lowrank, hit = cached_build(job.hierarchy, job.rows, level, folder or cache_folder(),
                                 ff_label=job.rows.settings.label(), refine_to=refine_to, warnings=warnings)
     light = Flashlight(job.leaves, lowrank, backend, user=user, warn=warnings.append)

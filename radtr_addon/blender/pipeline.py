@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import SettingsError
 from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
 from ..lights import Light, direct_irradiance, sky_irradiance
@@ -26,6 +27,12 @@ from .write import check_replaceable, write_results
 
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
 AUTO_PATCHES = 2000
+#: Peak bytes per Embree ray in flight (a form-factor row or a vertex gather; measured).
+BYTES_PER_RAY = 160
+#: Bytes per GPU view pixel: RGBA32F target, readback, per-pixel layout and histogram keys.
+BYTES_PER_PIXEL = 80
+#: Bytes per dome point (direction, position, solid angle) and per sky form factor.
+BYTES_PER_DOME_POINT, BYTES_PER_SKY_FACTOR = 56, 12
 
 
 @dataclass
@@ -56,6 +63,55 @@ class Settings:
     mode: str = "COPY"             # or "REPLACE"
     cache_mb: int = 2048
 
+    def validate(self, patches: int = 0):
+        """Raise SettingsError naming the first setting out of range, or the work that would
+        need more memory than ``cache_mb`` (the sky's form factors only once ``patches`` is known)."""
+        from ..solvers import SOLVERS
+
+        self.form_factors().validate()
+        s = self
+        for label, value, ok, need in (
+                ("max area", s.max_area, s.max_area >= 0 and np.isfinite(s.max_area), "0 (auto) or more"),
+                ("levels", s.levels, s.levels >= 0, "0 or more"),
+                ("resolution", s.resolution, s.resolution >= 2, "at least 2"),
+                ("solver", s.solver, s.solver in (*SOLVERS, "user"), f"one of {', '.join(SOLVERS)} or user"),
+                ("tolerance", s.tolerance, 0 <= s.tolerance < np.inf, "0 or more"),
+                ("iterations", s.max_iterations, s.max_iterations >= 1, "at least 1"),
+                ("precision", s.precision, s.precision in ("float32", "float64"), "float32 or float64"),
+                ("gather rays", s.gather_rays, s.gather_rays >= 0, "0 (patch mean) or more"),
+                ("sky", s.sky, s.sky in ("none", "uniform", "cie"), "none, uniform or cie"),
+                ("sky radiance", s.sky_radiance, 0 <= s.sky_radiance < np.inf, "0 or more"),
+                ("sky step", s.sky_step, 0 < s.sky_step <= 90, "above 0 and at most 90 degrees"),
+                ("max reflectance", s.max_reflectance, 0 <= s.max_reflectance <= 1, "between 0 and 1"),
+                ("exposure", s.exposure, 0 <= s.exposure < np.inf, "0 or more"),
+                ("result mode", s.mode, s.mode in ("COPY", "REPLACE"), "COPY or REPLACE"),
+                ("memory budget", s.cache_mb, s.cache_mb >= 1, "at least 1 MB")):
+            if not ok:
+                raise SettingsError(f"{label} must be {need}, got {value!r}")
+        for what, need in self.memory(patches).items():
+            if need > self.cache_mb << 20:
+                raise SettingsError(f"{what} needs {need / 2**30:,.1f} GiB, over the memory budget of "
+                                    f"{self.cache_mb:,} MB (raise the budget: Memory Budget, --cache-mb)")
+
+    def memory(self, patches: int = 0) -> dict[str, int]:
+        """Bytes the largest arrays of each stage need, by what they are for."""
+        from ..sky import dome_size
+
+        out = {}
+        if self.method == "embree":
+            out[f"casting {self.rays:,} rays per patch"] = self.rays * BYTES_PER_RAY
+        else:
+            pixels = self.resolution ** 2 * (3 if self.method == "hemicube" else 1)
+            out[f"a {self.method} view of {pixels:,} pixels (resolution {self.resolution})"] = pixels * BYTES_PER_PIXEL
+        out[f"gathering {self.gather_rays:,} rays per vertex"] = self.gather_rays * BYTES_PER_RAY
+        if self.sky != "none":
+            points = dome_size(self.sky_step, self.sky_step)
+            rows = min(self.sky_resolution ** 2, patches)
+            seen = f" x {rows:,} patches" if patches else ""
+            out[f"a sky dome of {points:,} points (step {self.sky_step:g} degrees){seen}"] = (
+                points * (BYTES_PER_DOME_POINT + BYTES_PER_SKY_FACTOR * rows))
+        return out
+
     def form_factors(self) -> FormFactorSettings:
         return FormFactorSettings(method=self.method, resolution=self.resolution, rotate=self.rotate,
                                   split=self.split, split_level=self.split_level, rays=self.rays)
@@ -79,6 +135,7 @@ class SolveJob:
     def __init__(self, bl_scene, depsgraph, view_layer, settings: Settings, log=print):
         self.bl_scene, self.settings, self.log = bl_scene, settings, log
         self.stats = Stats()
+        settings.validate()
         with self._stage("extract"):
             objects = source_objects(bl_scene, view_layer)
             if settings.mode == "REPLACE":
@@ -139,13 +196,11 @@ class SolveJob:
 
     def _apply_sky(self) -> np.ndarray:
         """Irradiance from the research sky (``sky``): uniform or CIE overcast, by sky form factors."""
-        from ..errors import SettingsError
         from ..sky import cie_overcast, sky_factors, uniform_sky
 
         s = self.settings
         models = {"uniform": uniform_sky, "cie": cie_overcast}
-        if s.sky not in models:
-            raise SettingsError(f"sky must be none, uniform or cie, got '{s.sky}'")
+        s.validate(self.leaves.n)
         self.sky = sky_factors(self.leaves, s.sky_step, s.sky_step, s.sky_resolution)
         return self.sky.irradiance(models[s.sky](self.sky, s.sky_radiance))
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from ..errors import InputFileError
 from .factor import LowRank, build, build_cut, refined_cut
 
 
@@ -77,9 +78,13 @@ def cached_build(hierarchy, rows, level: int, folder: Path, *, ff_label: str, dt
     """(factors, True if read from the cache): load them when the key matches, else build and
     save. ``refine_to`` > 0 refines the level into a cut of that many clusters (``refined_cut``)."""
     folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputFileError(f"the low-rank cache folder {folder} is a file")
     folder.mkdir(parents=True, exist_ok=True)
     key = cache_key(hierarchy, level, ff_label, dtype, refine_to)
     path = folder / f"lowrank-{key}.npz"
+    if path.is_dir():
+        raise InputFileError(f"the low-rank cache file {path} is a folder: remove it")
     if path.exists():
         try:
             return load(path, key), True
