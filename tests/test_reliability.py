@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.blender.pipeline import Settings, SolveJob, solve
 from radtr_addon.errors import InputFileError, RadTRError, SceneError, SettingsError
 
 FAST = dict(max_area=0.01, method="embree", rays=16, tolerance=1e-2)
@@ -209,3 +209,76 @@ def test_low_rank_cache_paths_that_are_not_what_they_should_be(tmp_path):
     (tmp_path / f"lowrank-{cache_key(h, 1, rows.settings.label(), np.float64)}.npz").mkdir()
     with pytest.raises(InputFileError, match="the low-rank cache file .*npz is a folder: remove it"):
         cached_build(h, rows, 1, tmp_path, ff_label=rows.settings.label())
+
+
+# -- results: never garbage, never a false "converged" -------------------------------------------
+
+def test_emission_beyond_what_a_colour_attribute_holds_is_refused(cornell):
+    bpy = cornell
+    bpy.data.materials["light"].node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 2e38
+    before = state(bpy)
+    with pytest.raises(SceneError, match=r"emission of patch \d+ \(object 'light', material 'light'\): "
+                                         r"\(6.28e\+38, .*\) W/m\^2 is NaN or beyond what a colour attribute holds"):
+        solve(bpy.context, Settings(**FAST), log=quiet)
+    assert state(bpy) == before
+
+
+def test_non_finite_radiosity_is_never_written(cornell):
+    bpy = cornell
+    before = state(bpy)
+    ctx = bpy.context
+    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, Settings(**FAST), log=quiet).run()
+    result = job.solver.result
+
+    def overflowing():
+        r = result()
+        r.B[7] = [np.inf, 1.0, 1.0]
+        return r
+
+    job.solver.result = overflowing
+    with pytest.raises(SceneError, match=r"radiosity of patch 7 \(object '\w+', material '\w+'\): \(inf, 1, 1\)"):
+        job.finish()
+    assert state(bpy) == before
+
+
+USER_SOLVERS = [
+    ("import numpy as np\ndef f(E, **kw):\n    return E * 3.0\n",
+     r"returned a B whose residual is [\d.]+ of the emitted power, above the tolerance 0.001"),
+    ("import scipy.sparse.linalg as la\nimport numpy as np\n"
+     "def f(F, E, rho, areas):\n    return np.stack([E[:, c] + 0j for c in range(3)], axis=1) * (1 + 1j)\n",
+     r"returned complex numbers \(largest imaginary part [\d.]+\); return real B"),
+    ("import sys\ndef f(**kw):\n    sys.exit(3)\n", r"raised SystemExit: 3 \(bad.py:3\)"),
+    ("def f(F, **kw):\n    return F.solve_everything()\n", r"raised AttributeError: .*solve_everything.* \(bad.py:2\)"),
+    ("import sys\nsys.exit(1)\n", r"loading it raised SystemExit: 1 \(bad.py:2\)"),
+]
+
+
+@pytest.mark.parametrize("body, message", USER_SOLVERS)
+def test_misbehaving_user_solver_is_named_and_changes_nothing(cornell, tmp_path, body, message):
+    from radtr_addon.solvers.user import UserSolverError
+
+    bpy = cornell
+    (tmp_path / "bad.py").write_text(body)
+    before = state(bpy)
+    spec = f"{tmp_path / 'bad.py'}:f"
+    with pytest.raises(UserSolverError, match=f"user solver '{re.escape(spec)}':? {message}"):
+        solve(bpy.context, Settings(solver="user", user_solver=spec, tolerance=1e-3,
+                                    **{k: v for k, v in FAST.items() if k != "tolerance"}), log=quiet)
+    assert state(bpy) == before
+
+
+def test_direct_solve_reports_converged_only_when_the_residual_says_so(cornell):
+    job = solve(cornell.context, Settings(solver="direct", **FAST), log=quiet)
+    assert job.result.converged and job.result.residual <= 1e-2
+    assert "converged" in job.summary() and "NOT" not in job.summary()
+
+
+def test_ctrl_c_in_a_user_solver_ends_the_cli_with_a_line_not_a_traceback(blend, tmp_path, capsys):
+    from radtr_addon.cli import main
+
+    (tmp_path / "bad.py").write_text("def f(**kw):\n    raise KeyboardInterrupt\n")
+    args = ["solve", "cornell_box", "--max-area", "0.01", "--method", "embree", "--rays", "16",
+            "--solver", "user", "--user-solver", f"{tmp_path / 'bad.py'}:f", "--out", str(tmp_path / "r.blend")]
+    assert main(args) == 130
+    assert capsys.readouterr().err == "RadTR: cancelled\n"
+    assert not (tmp_path / "r.blend").exists()

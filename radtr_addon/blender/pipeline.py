@@ -23,7 +23,7 @@ from ..solvers import make_solver
 from ..textures import varying_reflectance
 from .extract import extract, source_objects
 from .lights import scene_lights, world_radiance
-from .write import check_replaceable, write_results
+from .write import check_replaceable, check_writable, write_results
 
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
 AUTO_PATCHES = 2000
@@ -158,6 +158,7 @@ class SolveJob:
         with self._stage("lights"):
             self._add_lights(bl_scene, view_layer)
         self.leaves.validate()
+        check_writable(self.leaves.emission, lambda i: f"emission of {self.leaves.patch_label(i)}")
         with self._stage("form_factor_init"):
             self.rows = FormFactors(self.leaves, settings.form_factors(), settings.cache_mb << 20)
         for w in self.rows.warnings:
@@ -282,7 +283,9 @@ class SolveJob:
     def summary(self) -> str:
         r = self.result
         unit = "shots" if r.method == "shooting" else "sweeps" if r.method != "direct" else "solve"
-        state = "converged" if r.converged else "stopped at the iteration cap (Continue goes on)"
+        state = ("converged" if r.converged else f"NOT converged to the tolerance {self.solver.tol:g}"
+                 + (", stopped at the iteration cap (Continue goes on)" if r.iterations >= self.solver.max_iterations
+                    else ""))
         inst = f" ({self.instances:,} instances)" if self.instances else ""
         return (f"{self.leaves.n:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
                 f"{state}; energy balance error {r.balance_error():.1e}")

@@ -21,6 +21,8 @@ from ..reconstruct import MeshPart, VertexRadiosity, mesh_part
 from .extract import HIDDEN_SOURCE, RESULT_COLLECTION, bpy_collection
 
 DISPLAY_MATERIAL = "RadTR Radiosity"
+#: The largest value a FLOAT_COLOR attribute holds.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 EMISSION_NODE = "RadTR Emission"
 
 
@@ -115,6 +117,18 @@ def set_display(bl_scene, display: str, exposure: float):
         obj.show_wire = display == "outlines"
 
 
+def check_writable(values: np.ndarray, label):
+    """Raise SceneError when a row of ``values`` (k, 3) is NaN or beyond float32; ``label(i)`` names row i."""
+    from ..errors import SceneError
+
+    bad = ~(np.abs(values) <= FLOAT32_MAX).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        shown = ", ".join(f"{v:.3g}" for v in values[i])
+        raise SceneError(f"{label(i)}: ({shown}) W/m^2 is NaN or beyond what a colour attribute holds "
+                         f"({FLOAT32_MAX:.3g}), {int(bad.sum())} in all; lower the emission; nothing was written")
+
+
 def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", vertex_values=None) -> list:
     """Write radiosity ``B`` of ``leaves`` (a PatchScene) onto the extraction's objects.
 
@@ -124,6 +138,7 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", ve
 
     if mode == "REPLACE":
         check_replaceable(extraction.objects)
+    check_writable(B, lambda i: f"radiosity of {leaves.patch_label(i)}")
     vertex_values = vertex_values or VertexRadiosity(leaves, B)
     meshes = []
     existing = set(bpy.data.meshes.keys())
@@ -133,8 +148,9 @@ def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", ve
             if len(sel) == 0:
                 continue
             part = mesh_part(leaves, sel)
-            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, part, B[sel], vertex_values(part),
-                              leaves.emission[sel])
+            point = vertex_values(part)
+            check_writable(point, lambda i: f"radiosity at vertex {i} of object '{obj.name}'")
+            mesh = build_mesh(f"{obj.name}_radtr", leaves.vertices, part, B[sel], point, leaves.emission[sel])
             meshes.append((obj, mesh))
             if mode == "REPLACE":
                 _to_local(mesh, obj.matrix)

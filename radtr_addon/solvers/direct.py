@@ -65,7 +65,11 @@ class DirectSolver(Solver):
         self.iterations = 1
         self._residual = self.E + self.rho * self.H - self.B
         self._record((np.abs(self._residual) * self.area[:, None]).sum(axis=0), time.perf_counter() - t0)
-        self.converged = True
+
+    @property
+    def done(self) -> bool:
+        """Done once solved; ``converged`` says whether the residual of B met the tolerance."""
+        return self.K is not None
 
     def _solve(self, F, K) -> np.ndarray:
         """B (n, 3) in scaled units: LU of I - R_c K per channel, dense above DENSE_FRACTION fill."""

@@ -44,7 +44,7 @@ def load_user_solver(spec: str):
             module = importlib.import_module(module_name)
     except UserSolverError:
         raise
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         raise UserSolverError(f"user solver '{spec}': loading it raised {describe(exc)}") from None
     fn = getattr(module, func, None)
     if not callable(fn):
@@ -56,8 +56,11 @@ def call_user_solver(fn, spec: str, n: int, **problem) -> np.ndarray:
     """B (n, 3) from the user's function, checked (an (n, 1) or (n,) answer is grey)."""
     try:
         B = fn(**problem)
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:
         raise UserSolverError(f"user solver '{spec}' raised {describe(exc)}") from None
+    if np.iscomplexobj(B):
+        raise UserSolverError(f"user solver '{spec}' returned complex numbers (largest imaginary part "
+                              f"{np.abs(np.imag(B)).max():.3g}); return real B")
     try:
         B = np.asarray(B, dtype=float)
     except (TypeError, ValueError):
@@ -85,6 +88,13 @@ class UserSolver(DirectSolver):
 
     def _extra_bytes(self, n: int, dense: bool) -> int:
         return 0                                 # the user's function brings its own memory
+
+    def _advance(self, t0: float):
+        super()._advance(t0)
+        if self.done and not self.converged:
+            raise UserSolverError(f"user solver '{self.spec}' returned a B whose residual is {self.residual:.3g} "
+                                  f"of the emitted power, above the tolerance {self.tol:g}: it does not solve "
+                                  f"B = E + R K B (raise the tolerance to accept it)")
 
     def _solve(self, F, K) -> np.ndarray:
         s = self.scene
