@@ -11,7 +11,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from .errors import RadTRError, SettingsError, user_message
+from .errors import InputFileError, RadTRError, SettingsError, user_message
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -38,8 +38,12 @@ def open_scene(source: str) -> list[str]:
     path = Path(source)
     if path.suffix.lower() == ".blend":
         if not path.is_file():
-            raise RadTRError(f"{path}: no such file")
-        bpy.ops.wm.open_mainfile(filepath=str(path))
+            raise InputFileError(f"{path}: no such file")
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(path))
+        except RuntimeError as exc:
+            reason = str(exc).strip().removeprefix("Error: ")
+            raise InputFileError(f"{path}: not a .blend file Blender can read ({reason})") from None
         return []
     bpy.ops.wm.read_homefile(use_empty=True)
     if path.suffix.lower() == ".obj":

@@ -282,3 +282,87 @@ def test_ctrl_c_in_a_user_solver_ends_the_cli_with_a_line_not_a_traceback(blend,
     assert main(args) == 130
     assert capsys.readouterr().err == "RadTR: cancelled\n"
     assert not (tmp_path / "r.blend").exists()
+
+
+# -- bad input files ---------------------------------------------------------------------------
+
+TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+
+
+def write(path, text: str | bytes):
+    (path.write_bytes if isinstance(text, bytes) else path.write_text)(text)
+    return path
+
+
+def test_nan_vertex_in_a_mesh_names_the_object(cornell):
+    bpy = cornell
+    bpy.data.objects["tall_block"].data.vertices[3].co = (float("nan"), 0, 0)
+    before = state(bpy)
+    with pytest.raises(SceneError, match=r"object 'tall_block': vertex \d+ has a NaN or infinite coordinate "
+                                         r"\(1 vertices in all"):
+        solve(bpy.context, Settings(**FAST), log=quiet)
+    assert state(bpy) == before
+
+
+@pytest.mark.parametrize("line", ["v 1 nan 0", "v 0 1 inf", "v 0 -inf 1", "v 0 one 1"])
+def test_obj_vertex_that_is_not_a_finite_number_is_refused_with_file_and_line(blend, tmp_path, line):
+    from radtr_addon.blender.objfile import load_obj
+
+    obj = write(tmp_path / "bad.obj", f"{TRIANGLE}{line}\nf 1 2 3\nf 1 2 5\n")
+    with pytest.raises(InputFileError, match=f"bad.obj:5: vertex 5 has coordinates {line[2:]}; every coordinate "
+                                             f"must be a finite number"):
+        load_obj(obj)
+    assert not blend.data.objects and not blend.data.meshes
+
+
+def mtl_scene(tmp_path, mtl: str, obj_prefix: bytes = b""):
+    write(tmp_path / "m.mtl", mtl)
+    return write(tmp_path / "box.obj", obj_prefix + f"mtllib m.mtl\n{TRIANGLE}usemtl lamp\nf 1 2 3\n"
+                                                    f"usemtl wall\nf 1 3 4\nf 1 4 2\n".encode())
+
+
+def test_invalid_kd_is_a_warning_naming_the_material(blend, tmp_path):
+    from radtr_addon.blender.objfile import load_obj
+
+    warnings = load_obj(mtl_scene(tmp_path, "newmtl lamp\nKe 5 5 5\nnewmtl wall\nKd grey 0.5 0.5\n"))
+    assert "m.mtl:4: material 'wall': Kd grey 0.5 0.5 is not three numbers; Blender's default is used" in warnings
+    warnings = load_obj(mtl_scene(tmp_path, "newmtl lamp\nKe 5 5 5\nnewmtl wall\nKd 1.5 0.5 -0.1\n"))
+    assert any("material 'wall': Kd 1.5 0.5 -0.1 is outside 0..1" in w for w in warnings)
+
+
+@pytest.mark.parametrize("ke, why", [("nan 1 1", "is not a finite emission"),
+                                     ("5 -1 5", "is negative; emission must be 0 or more")])
+def test_bad_ke_is_refused_naming_the_material(blend, tmp_path, ke, why):
+    from radtr_addon.blender.objfile import load_obj
+
+    with pytest.raises(InputFileError, match=f"m.mtl:2: material 'lamp': Ke {ke} {why}"):
+        load_obj(mtl_scene(tmp_path, f"newmtl lamp\nKe {ke}\nnewmtl wall\nKd 0.5 0.5 0.5\n"))
+    assert not blend.data.objects
+
+
+def test_mtl_reference_after_a_utf8_bom_is_honoured(blend, tmp_path):
+    from radtr_addon.blender.objfile import load_obj
+
+    warnings = load_obj(mtl_scene(tmp_path, "newmtl lamp\nKa 4 4 4\nnewmtl wall\nKd 0.5 0.5 0.5\n",
+                                  b"\xef\xbb\xbf"))
+    assert any("material 'lamp': Ka (4.0, 4.0, 4.0) taken as emitted radiance" in w for w in warnings)
+    lamp = blend.data.materials["lamp"].node_tree.nodes["Principled BSDF"]
+    assert lamp.inputs["Emission Strength"].default_value == 4.0
+
+
+@pytest.mark.parametrize("kind", ["random", "truncated", "empty"])
+def test_unreadable_blend_files_are_an_input_file_error(cornell, tmp_path, kind):
+    import os
+
+    from radtr_addon.cli import open_scene
+
+    bpy = cornell
+    good = tmp_path / "good.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(good), copy=True)
+    data = good.read_bytes()
+    body = {"random": os.urandom(4096), "truncated": data[:len(data) // 2], "empty": b""}[kind]
+    bad = write(tmp_path / "bad.blend", body)
+    before = state(bpy)
+    with pytest.raises(InputFileError, match=r"bad.blend: not a .blend file Blender can read \(.+\)"):
+        open_scene(str(bad))
+    assert state(bpy) == before

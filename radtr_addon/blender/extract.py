@@ -115,6 +115,10 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
             if props.attribute is not None:
                 attrs.add(props.attribute)
         verts, tris, uv, colors = _object_triangles(src, depsgraph, attrs, warnings)
+        bad = ~np.isfinite(verts).all(axis=1)
+        if bad.any():
+            raise SceneError(f"object '{src.name}': vertex {int(np.flatnonzero(bad)[0])} has a NaN or infinite "
+                             f"coordinate ({int(bad.sum())} vertices in all, after modifiers and transform)")
         if len(tris) == 0:
             warnings.append(f"object '{src.name}' has no faces; skipped")
             continue

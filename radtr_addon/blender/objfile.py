@@ -13,6 +13,7 @@ Emission Strength max(Ka), Color Ka / max(Ka)), with a warning naming it.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..errors import InputFileError
@@ -21,7 +22,7 @@ from ..errors import InputFileError
 def scan_obj(path: Path) -> tuple[list[str], list[str]]:
     """(problems with line numbers, material library names) of the OBJ file at ``path``."""
     try:
-        text = path.read_text(encoding="utf-8", errors="strict")
+        text = path.read_text(encoding="utf-8-sig", errors="strict")
     except FileNotFoundError:
         raise InputFileError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -35,6 +36,9 @@ def scan_obj(path: Path) -> tuple[list[str], list[str]]:
         key = parts[0]
         if key in counts:
             counts[key] += 1
+            if key == "v" and not _finite(parts[1:4]):
+                raise InputFileError(f"{path.name}:{lineno}: vertex {counts['v']} has coordinates "
+                                     f"{' '.join(parts[1:4])}; every coordinate must be a finite number")
         elif key == "mtllib":
             libs += parts[1:]
         elif key == "f":
@@ -42,6 +46,13 @@ def scan_obj(path: Path) -> tuple[list[str], list[str]]:
             if problem:
                 problems.append(f"{path.name}:{lineno}: {problem}; face skipped")
     return problems, libs
+
+
+def _finite(values) -> bool:
+    try:
+        return len(values) > 0 and all(math.isfinite(float(x)) for x in values)
+    except ValueError:
+        return False
 
 
 def _face_problem(corners, counts) -> str | None:
@@ -63,21 +74,32 @@ def _face_problem(corners, counts) -> str | None:
     return None
 
 
-def read_mtl(path: Path) -> dict[str, dict[str, tuple[float, ...]]]:
-    """{material: {key: values}} of an MTL file (only the numeric keys RadTR uses)."""
+def read_mtl(path: Path, warnings: list[str]) -> dict[str, dict[str, tuple[float, ...]]]:
+    """{material: {key: values}} of an MTL file (only the numeric keys RadTR uses). A Kd that is
+    not three finite numbers in 0..1 is a warning (Blender uses its default); a Ke that is NaN,
+    infinite or negative is refused."""
     materials: dict[str, dict] = {}
-    current = None
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+    name = current = None
+    for lineno, line in enumerate(path.read_text(encoding="utf-8-sig", errors="replace").splitlines(), 1):
         parts = line.split("#", 1)[0].split()
         if not parts:
             continue
         if parts[0] == "newmtl" and len(parts) > 1:
-            current = materials.setdefault(" ".join(parts[1:]), {})
+            name = " ".join(parts[1:])
+            current = materials.setdefault(name, {})
         elif current is not None and parts[0] in ("Ka", "Kd", "Ke"):
-            try:
-                current[parts[0]] = tuple(float(x) for x in parts[1:4])
-            except ValueError:
+            where = f"{path.name}:{lineno}: material '{name}': {parts[0]} {' '.join(parts[1:4])}"
+            if not _finite(parts[1:4]):
+                if parts[0] == "Ke":
+                    raise InputFileError(f"{where} is not a finite emission")
+                warnings.append(f"{where} is not three numbers; Blender's default is used")
                 continue
+            values = tuple(float(x) for x in parts[1:4])
+            if parts[0] == "Ke" and min(values) < 0:
+                raise InputFileError(f"{where} is negative; emission must be 0 or more")
+            if parts[0] == "Kd" and not 0 <= min(values) <= max(values) <= 1:
+                warnings.append(f"{where} is outside 0..1; reflectances are clamped to 0..Max Reflectance")
+            current[parts[0]] = values
     return materials
 
 
@@ -92,7 +114,7 @@ def load_obj(path: str | Path) -> list[str]:
     for lib in libs:
         lib_path = path.parent / lib
         if lib_path.is_file():
-            mtl.update(read_mtl(lib_path))
+            mtl.update(read_mtl(lib_path, warnings))
         else:
             warnings.append(f"{path.name}: material library '{lib}' not found; "
                             f"its faces use Blender's default material")
