@@ -366,3 +366,31 @@ def test_unreadable_blend_files_are_an_input_file_error(cornell, tmp_path, kind)
     with pytest.raises(InputFileError, match=r"bad.blend: not a .blend file Blender can read \(.+\)"):
         open_scene(str(bad))
     assert state(bpy) == before
+
+
+# -- extreme scales ------------------------------------------------------------------------------
+
+def furnace(emission: float, size: float):
+    """A closed cube of side ``size`` about the origin, reflectance 0.5, emitting ``emission``:
+    B = 2 emission, in the area mean exactly."""
+    from geometry import cube
+
+    from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
+    from radtr_addon.hierarchy import subdivide
+    from radtr_addon.scene import PatchScene
+    from radtr_addon.solvers import solve as solve_scene
+
+    c = cube()
+    scene = PatchScene((c.vertices - 0.5) * size, c.triangles, 0.5, emission, 0, 0)
+    leaves = subdivide(scene, 0.05 * size ** 2, 1).leaves
+    r = solve_scene("shooting", leaves, FormFactors(leaves, FormFactorSettings("embree", rays=64)), tol=1e-4)
+    return r, leaves.areas
+
+
+@pytest.mark.parametrize("emission, size", [(1e16, 1.0), (1e-16, 1.0), (1.0, 1e16), (1.0, 1e-16), (1.0, 1e12)])
+def test_white_furnace_is_right_at_any_emission_and_any_size(emission, size):
+    unit, _ = furnace(1.0, 1.0)
+    r, areas = furnace(emission, size)
+    assert r.converged and r.escaped.max() == 0
+    assert np.average(r.B[:, 0], weights=areas) / emission == pytest.approx(2.0, rel=2e-4)
+    np.testing.assert_allclose(r.B / emission, unit.B, rtol=1e-6)

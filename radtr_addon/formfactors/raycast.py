@@ -55,8 +55,11 @@ class EmbreeRays:
         self.tris = scene.vertices[scene.triangles]
         lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
         self.epsilon = 1e-6 * (float(np.linalg.norm(hi - lo)) or 1.0)
+        # Embree sees the scene centred and scaled to a unit diagonal: it misses everything
+        # beyond about 1e12 units, and float32 keeps most digits near the origin
+        self._centre, self._unit = 0.5 * (lo + hi), 1e6 * self.epsilon
         self._embree = rtcore_scene.EmbreeScene()
-        TriangleMesh(self._embree, self.tris.astype(np.float32))
+        TriangleMesh(self._embree, self._local(self.tris))
         self.cast = 0
 
     def rows(self, ids) -> list[Row]:
@@ -128,14 +131,18 @@ class EmbreeRays:
     def hit(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Patch id (k,) each ray from ``origins`` along ``dirs`` (k, 3) hits first, -1 for none."""
         self.cast += len(origins)
-        return self._embree.run(np.asarray(origins, np.float32), np.asarray(dirs, np.float32)).astype(np.int64)
+        return self._embree.run(self._local(origins), np.asarray(dirs, np.float32)).astype(np.int64)
+
+    def _local(self, points: np.ndarray) -> np.ndarray:
+        """``points`` in the frame Embree sees (float32)."""
+        return ((np.asarray(points, float) - self._centre) / self._unit).astype(np.float32)
 
     def reaches(self, origins: np.ndarray, dirs: np.ndarray, dists: np.ndarray | None = None) -> np.ndarray:
         """Whether nothing is in the way (k,) of rays from ``origins`` along unit ``dirs`` for
         ``dists`` (default: to infinity)."""
         self.cast += len(origins)
-        dists = np.full(len(origins), 1e30) if dists is None else dists
-        blocked = self._embree.run(np.asarray(origins, np.float32), np.asarray(dirs, np.float32),
+        dists = np.full(len(origins), 1e30) if dists is None else np.asarray(dists) / self._unit
+        blocked = self._embree.run(self._local(origins), np.asarray(dirs, np.float32),
                                    dists=np.asarray(dists, np.float32), query="OCCLUDED")
         return blocked < 0
 
