@@ -1,0 +1,295 @@
+"""Links between nodes: how much light each carries, how wrong that may be, and refinement.
+
+A link S -> R says: R gathers the light of S at this level of both trees. Its transfer:
+
+- element to element: the irradiance of R per unit radiosity of S, a quadratic over R
+  (``quadratic``) through F(x -> S) V(x, S) at its six nodes x: the closed-form (Lambert contour)
+  form factor from the point to the polygon S, clipped at the point's horizon, times the
+  fraction of ``VISIBILITY_RAYS`` shadow rays from x to stratified, seeded points on S that
+  arrive. Exact for the source's extent however near it is, so near-field links need refine
+  only for how the light varies over R.
+- with a cluster at either end: point to point between the ends' centres along w, the source
+  sending its projected area A_proj(w) times its radiosity, the receiver taking cos per
+  element (a cluster receiver keeps the light by direction and hands it down, ``solve``);
+  visibility by rays between random points of the two ends' triangles.
+
+Error estimate of a link (W/m^2 at R, worst channel), against epsilon x the scene's mean
+emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the miss of the
+quadratic at R's check points (or a quarter of F's spread over R if more; F itself where
+visibility is partial: a shadow boundary crosses R); cluster links rho_R x carried
+irradiance x (the ends' angular size seen across the link, + 1 where visibility is
+partial). A link over the bound is replaced by the links of the children of its larger
+end; a link whose ends cannot split further is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import quadratic
+from .nodes import DIRECTIONS, Nodes, nearest_direction
+
+#: Barycentric points on a receiving element where its form factor is evaluated (``quadratic``).
+RECEIVER_POINTS = quadratic.POINTS
+#: Share of F's spread over the receiver counted as error even where the quadratic fits the
+#: check points (a peak near an edge falls between them).
+SPREAD_SHARE = 0.25
+#: Shadow rays per receiver point (element links) and per cluster link.
+VISIBILITY_RAYS = 4
+#: Links evaluated per numpy batch (bounds the temporary memory).
+BATCH = 20_000
+
+
+@dataclass
+class Links:
+    """Accepted links (arrays of equal length): ends, transfer coefficient and what the error needs."""
+
+    src: np.ndarray
+    rcv: np.ndarray
+    coef: np.ndarray       # (L, 6) transfer per unit source term at the receiver's nodes
+    spread: np.ndarray     # element pairs: the quadratic's miss at the centroid; cluster links: angular size
+    partial: np.ndarray    # visibility between the ends is partial
+    d: np.ndarray          # table direction of travel S -> R
+
+    @classmethod
+    def empty(cls) -> "Links":
+        z = np.zeros(0)
+        return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z.astype(bool), z.astype(np.int64))
+
+    @property
+    def mean(self) -> np.ndarray:
+        """The transfer averaged over the receiver."""
+        return self.coef @ quadratic.MEAN
+
+    def __len__(self):
+        return len(self.src)
+
+    def take(self, keep: np.ndarray) -> "Links":
+        return Links(*(getattr(self, f)[keep] for f in ("src", "rcv", "coef", "spread", "partial", "d")))
+
+    @staticmethod
+    def concat(parts: list["Links"]) -> "Links":
+        parts = [p for p in parts if len(p)] or [Links.empty()]
+        return Links(*(np.concatenate([getattr(p, f) for p in parts])
+                       for f in ("src", "rcv", "coef", "spread", "partial", "d")))
+
+
+def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Unoccluded form factors (L, P) from points (L, P, 3) facing ``normals`` (L, 3) to the
+    fronts of triangles (L, 3, 3), pair by pair: Lambert's contour integral over the part of
+    each triangle above the point's tangent plane (clipped, so at most a quadrilateral)."""
+    L, P = points.shape[:2]
+    n_t = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    front = np.einsum("lpc,lc->lp", points - tris[:, None, 0], n_t) > 0
+    v = np.broadcast_to(tris[:, None], (L, P, 3, 3))
+    h = np.einsum("lpkc,lc->lpk", v - points[:, :, None], normals)
+    h1, v1 = np.roll(h, -1, axis=2), np.roll(v, -1, axis=2)
+    inside, crossing = h >= 0, (h >= 0) != (h1 >= 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(crossing, h / (h - h1), 0.0)
+    cut = v + t[..., None] * (v1 - v)
+    slots = np.stack([v, cut], axis=3).reshape(L, P, 6, 3)           # corner, crossing, corner, ...
+    valid = np.stack([inside, crossing], axis=3).reshape(L, P, 6)
+    idx = np.where(valid, np.arange(6), -1)
+    idx = np.maximum.accumulate(idx, axis=2)
+    last = idx[..., -1:]
+    idx = np.where(idx < 0, last, idx)                                # fill gaps cyclically
+    poly = np.take_along_axis(slots, np.maximum(idx, 0)[..., None], axis=2) - points[:, :, None]
+    r = poly / np.maximum(np.linalg.norm(poly, axis=-1, keepdims=True), 1e-300)
+    r2 = np.roll(r, -1, axis=2)
+    cross = np.cross(r, r2)
+    sin = np.linalg.norm(cross, axis=-1)
+    gamma = np.arctan2(sin, np.einsum("lpkc,lpkc->lpk", r, r2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        terms = np.where(sin > 1e-15, gamma * np.einsum("lpkc,lc->lpk", cross, normals) / sin, 0.0)
+    F = np.abs(terms.sum(axis=-1)) / (2 * np.pi)
+    ok = front & (last[..., 0] >= 0) & (h > 0).any(axis=-1)
+    return np.where(ok, np.minimum(F, 1.0), 0.0)
+
+
+def triangle_points(tris: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Uniform points (..., 3) on triangles (..., 3, 3) from unit-square samples u, v (...)."""
+    s = np.sqrt(u)[..., None]
+    return (1 - s) * tris[..., 0, :] + s * (1 - v[..., None]) * tris[..., 1, :] + s * v[..., None] * tris[..., 2, :]
+
+
+class Evaluator:
+    """Evaluates candidate links of one ``Nodes`` tree with an Embree ``caster`` for visibility."""
+
+    def __init__(self, nodes: Nodes, caster, seed: int = 0):
+        self.nodes, self.caster = nodes, caster
+        self.rng = np.random.default_rng(seed)
+        s = nodes.scene
+        self.cum_area = np.cumsum(s.areas[nodes.order])    # members by area, in cluster-tree order
+        self.span = self._spans()
+
+    def _spans(self) -> np.ndarray:
+        """(nodes, 2) range of each cluster-tree node's triangles in ``nodes.order``."""
+        nd = self.nodes
+        pos = np.empty(nd.scene.n, np.int64)
+        pos[nd.order] = np.arange(nd.scene.n)
+        span = np.zeros((nd.size, 2), np.int64)
+        span[:, 0] = np.iinfo(np.int64).max
+        node, t = nd.parent[nd.element_root].copy(), np.arange(nd.scene.n)
+        span[nd.element_root, 0], span[nd.element_root, 1] = pos, pos + 1
+        while len(t):
+            np.minimum.at(span[:, 0], node, pos[t])
+            np.maximum.at(span[:, 1], node, pos[t] + 1)
+            node = nd.parent[node]
+            keep = node >= 0
+            node, t = node[keep], t[keep]
+        return span
+
+    def evaluate(self, src: np.ndarray, rcv: np.ndarray) -> Links:
+        """Links for the pairs (src, rcv) that carry any light (the rest are dropped)."""
+        out = []
+        for lo in range(0, len(src), BATCH):
+            s, r = src[lo:lo + BATCH], rcv[lo:lo + BATCH]
+            both = ~self.nodes.cluster[s] & ~self.nodes.cluster[r]
+            out.append(self._elements(s[both], r[both]))
+            out.append(self._clusters(s[~both], r[~both]))
+        return Links.concat(out)
+
+    def _elements(self, s: np.ndarray, r: np.ndarray) -> Links:
+        nd = self.nodes
+        keep = s != r
+        s, r = s[keep], r[keep]
+        if not len(s):
+            return Links.empty()
+        tri_s, tri_r, n_r = nd.tri[s], nd.tri[r], nd.normal[r]
+        x = np.einsum("pk,lkc->lpc", RECEIVER_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
+        F = polygon_factor(x, n_r, tri_s)                                   # (L, P)
+        V = self._visible_from_points(x, tri_s, F > 0)
+        F = F * V
+        miss = np.abs(F[:, 6:] - F[:, :6] @ quadratic.AT_CHECK.T).max(axis=1)
+        miss = np.maximum(miss, SPREAD_SHARE * (F.max(axis=1) - F.min(axis=1)))
+        partial = ((V > 0) & (V < 1)).any(axis=1)
+        links = Links(s, r, F[:, :6], miss, partial, self._direction(s, r))
+        return links.take(F.max(axis=1) > 0)
+
+    def _visible_from_points(self, x: np.ndarray, tri_s: np.ndarray, need: np.ndarray) -> np.ndarray:
+        """Fraction (L, P) of shadow rays from points x (L, P, 3) to random points on tri_s that arrive."""
+        L, P = need.shape
+        V = np.zeros((L, P))
+        li, pi = np.nonzero(need)
+        if not len(li):
+            return V
+        m = VISIBILITY_RAYS
+        cells = np.arange(m)
+        u = (cells + self.rng.random((len(li), m))) / m                    # stratified in u
+        targets = triangle_points(tri_s[li][:, None], u, self.rng.random((len(li), m)))
+        origin = np.repeat(x[li, pi], m, axis=0)
+        d = targets.reshape(-1, 3) - origin
+        dist = np.linalg.norm(d, axis=1)
+        ok = self.caster.reaches(origin, d / np.maximum(dist, 1e-300)[:, None], dist * (1 - 1e-4))
+        V[li, pi] = ok.reshape(-1, m).mean(axis=1)
+        return V
+
+    def _direction(self, s, r) -> np.ndarray:
+        w = self.nodes.center[r] - self.nodes.center[s]
+        return nearest_direction(w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300))
+
+    def _clusters(self, s: np.ndarray, r: np.ndarray) -> Links:
+        nd = self.nodes
+        if not len(s):
+            return Links.empty()
+        w = nd.center[r] - nd.center[s]
+        dist = np.linalg.norm(w, axis=1)
+        w = w / np.maximum(dist, 1e-300)[:, None]
+        reach = nd.radius[s] + nd.radius[r]
+        far = dist > reach
+        geo = np.ones(len(s))
+        es, er = ~nd.cluster[s], ~nd.cluster[r]
+        geo[es] *= nd.area[s[es]] * np.maximum(np.einsum("ij,ij->i", nd.normal[s[es]], w[es]), 0.0)
+        geo[er] *= np.maximum(-np.einsum("ij,ij->i", nd.normal[r[er]], w[er]), 0.0)
+        # an end wholly behind the other end's plane gets nothing
+        behind_s = es & (np.einsum("ij,ij->i", nd.center[r] - nd.tri[s, 0], nd.normal[s]) < -nd.radius[r])
+        behind_r = er & (np.einsum("ij,ij->i", nd.center[s] - nd.tri[r, 0], nd.normal[r]) < -nd.radius[s])
+        keep = ~(behind_s | behind_r) & (~far | (geo > 0))
+        s, r, w, dist, geo, far, reach = s[keep], r[keep], w[keep], dist[keep], geo[keep], far[keep], reach[keep]
+        V = self._visible_between(s, r)
+        coef = np.where(far, V * geo / (np.pi * np.maximum(dist ** 2, 1e-300)), 0.0)
+        spread = np.where(far, reach / np.maximum(dist, 1e-300), np.inf)   # near: must refine
+        links = Links(s, r, np.repeat(coef[:, None], 6, axis=1), spread, (V > 0) & (V < 1), nearest_direction(w))
+        return links.take(~far | (V > 0))
+
+    def _points_on(self, nodes_: np.ndarray, m: int) -> np.ndarray:
+        """m random points (L, m, 3) on each node's triangles, chosen by area."""
+        nd = self.nodes
+        out = np.empty((len(nodes_), m, 3))
+        el = ~nd.cluster[nodes_]
+        u, v = self.rng.random((len(nodes_), m)), self.rng.random((len(nodes_), m))
+        out[el] = triangle_points(nd.tri[nodes_[el]][:, None], u[el], v[el])
+        cl = np.flatnonzero(~el)
+        if len(cl):
+            lo, hi = self.span[nodes_[cl], 0], self.span[nodes_[cl], 1]
+            base = np.where(lo > 0, self.cum_area[np.maximum(lo - 1, 0)], 0.0)
+            pick = base[:, None] + self.rng.random((len(cl), m)) * (self.cum_area[hi - 1] - base)[:, None]
+            k = np.minimum(np.searchsorted(self.cum_area, pick, side="right"), (hi - 1)[:, None])
+            t = nd.order[k]
+            s = nd.scene
+            out[cl] = triangle_points(s.vertices[s.triangles[t]], self.rng.random(t.shape), self.rng.random(t.shape))
+        return out
+
+    def _visible_between(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Fraction (L,) of rays between random points of the two ends that arrive."""
+        m = VISIBILITY_RAYS
+        a, b = self._points_on(s, m).reshape(-1, 3), self._points_on(r, m).reshape(-1, 3)
+        d = b - a
+        dist = np.linalg.norm(d, axis=1)
+        d = d / np.maximum(dist, 1e-300)[:, None]
+        eps = self.caster.epsilon
+        ok = self.caster.reaches(a + eps * d, d, np.maximum(dist * (1 - 1e-4) - eps, 0.0))
+        return ok.reshape(-1, m).mean(axis=1)
+
+
+def children(nodes: Nodes, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(parent position, child id) pairs for nodes ``n`` that have children."""
+    count = nodes.n_children[n]
+    pos = np.repeat(np.arange(len(n)), count)
+    first = np.repeat(nodes.first_child[n], count)
+    offset = np.arange(len(pos)) - np.repeat(np.cumsum(count) - count, count)
+    return pos, first + offset
+
+
+def expand(nodes: Nodes, src: np.ndarray, rcv: np.ndarray, split_src: np.ndarray):
+    """The child links replacing links (src, rcv): the children of src where ``split_src``,
+    else of rcv; a cluster linked to itself becomes every pair of its children."""
+    self_link = src == rcv
+    out_s, out_r = [], []
+    a = np.flatnonzero(self_link)
+    if len(a):
+        pos, kid = children(nodes, src[a])
+        # all ordered pairs of children of the same parent
+        i, j = np.nonzero(pos[:, None] == pos[None, :]) if len(pos) < 4096 else _pairs(pos)
+        out_s.append(kid[i])
+        out_r.append(kid[j])
+    b = np.flatnonzero(~self_link & split_src)
+    if len(b):
+        pos, kid = children(nodes, src[b])
+        out_s.append(kid)
+        out_r.append(rcv[b][pos])
+    c = np.flatnonzero(~self_link & ~split_src)
+    if len(c):
+        pos, kid = children(nodes, rcv[c])
+        out_s.append(src[c][pos])
+        out_r.append(kid)
+    if not out_s:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(out_s), np.concatenate(out_r)
+
+
+def _pairs(pos: np.ndarray):
+    """Index pairs (i, j) with pos[i] == pos[j], for sorted groups of ``pos``."""
+    starts = np.flatnonzero(np.r_[True, pos[1:] != pos[:-1]])
+    sizes = np.diff(np.r_[starts, len(pos)])
+    i = np.concatenate([np.repeat(np.arange(st, st + k), k) for st, k in zip(starts, sizes)])
+    j = np.concatenate([np.tile(np.arange(st, st + k), k) for st, k in zip(starts, sizes)])
+    return i, j
+
+
+def direction_cosines(normals: np.ndarray) -> np.ndarray:
+    """max(0, -n . w_d) (m, directions): how much light travelling along each table direction
+    an element facing ``normals`` receives, per unit irradiance normal to that direction."""
+    return np.maximum(-normals @ DIRECTIONS.T, 0.0)

@@ -1,0 +1,45 @@
+"""Quadratic (P2) irradiance over an element: six nodal values, corners then edge midpoints.
+
+A link does not hand its receiver one number but the gathered form factor at six points,
+so how the light varies over a large receiver (a wall lit from near one end) survives the
+push to its children: each child's nodal values are the parent's quadratic evaluated at the
+child's nodes (``PUSH``). A hierarchy that mixes coarse and fine links then still sums, at
+every point, the form factors of a partition of the scene (1 in a closed one), where a
+constant per link would leave each leaf the mean of a coarser receiver.
+
+Nodes sit ``INSET`` of the way towards the centroid (an edge on a contact line is a singular
+line of F). The error of the quadratic is measured at ``CHECK``: the centroid and the three
+points halfway from it to the corners, where a peak between the nodes shows.
+Barycentric order: corners a, b, c, then midpoints of bc, ca, ab.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+INSET = 0.05
+_REF = np.vstack([np.eye(3), [[0, .5, .5], [.5, 0, .5], [.5, .5, 0]]])
+CHECK = np.vstack([[[1 / 3] * 3], (np.eye(3) + 1 / 3) / 2])
+#: Barycentric points where a link's form factor is evaluated: the six nodes, then ``CHECK``.
+POINTS = np.vstack([(1 - INSET) * _REF + INSET / 3, CHECK])
+
+
+def basis(bary: np.ndarray) -> np.ndarray:
+    """P2 basis values (m, 6) at barycentric points (m, 3) of the inset triangle."""
+    ref = (np.asarray(bary, float) - INSET / 3) / (1 - INSET)
+    l1, l2, l3 = ref.T
+    return np.stack([l1 * (2 * l1 - 1), l2 * (2 * l2 - 1), l3 * (2 * l3 - 1), 4 * l2 * l3, 4 * l3 * l1, 4 * l1 * l2], 1)
+
+
+#: Values (4, 6) at the check points from the six nodal values.
+AT_CHECK = basis(CHECK)
+#: Mean over the whole triangle (exact for a quadratic: its mean at the three edge midpoints).
+MEAN = basis(_REF[3:]).mean(axis=0)
+#: Values at the triangle's corners (3, 6).
+AT_CORNERS = basis(np.eye(3))
+
+# children of ``nodes.Nodes.split``, as corners in the parent's barycentric coordinates
+_A, _B, _C = np.eye(3)
+_AB, _BC, _CA = (_A + _B) / 2, (_B + _C) / 2, (_C + _A) / 2
+_CHILDREN = [(_AB, _BC, _CA), (_A, _AB, _CA), (_AB, _B, _BC), (_CA, _BC, _C)]
+#: (4, 6, 6): a child's nodal values from its parent's, per child slot.
+PUSH = np.stack([basis(POINTS[:6] @ np.array(corners)) for corners in _CHILDREN])

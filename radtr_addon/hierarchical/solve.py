@@ -1,0 +1,394 @@
+"""Refine-solve rounds of hierarchical radiosity, push-pull gathering and the result.
+
+One round: refine every link whose error estimate (``links``) is over epsilon x the emitted
+power, with the radiosity of the last solve (E at first); refine the elements over which an
+outside light (Light objects, the World) varies by more than that too; then solve by Jacobi
+sweeps over the links with push-pull: pull the radiosity up the trees (an element's is the
+area mean of its leaves, a cluster's the light it sends along each table direction), gather
+along every link into its receiver, push the irradiance down to the leaves (to a cluster's
+elements by their cosine to each direction) and set B = E + rho H there. Rounds end when no
+link needs refining.
+
+Bound: every link kept carries at most epsilon x emitted power of error (or cannot split any
+more), and each element's gathered light goes through its own links once per bounce, so the
+error of the light reflected once is at most (links into an element) x epsilon; over all
+bounces the power-weighted error of B is at most epsilon x emitted x links / (1 - rho_max).
+In practice the estimate is loose by orders: tests measure the error against a fine uniform
+direct solve (``tests/test_hierarchical.py``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import Cancelled, SceneError
+from ..scene import PatchScene
+from ..solvers.result import SolveResult
+from . import quadratic
+from .links import Evaluator, Links, direction_cosines, expand
+from .nodes import DIRECTIONS, Nodes, nearest_direction
+
+#: Links held at most (about 100 bytes each), refused beyond with advice.
+MAX_LINKS = 20_000_000
+
+
+@dataclass
+class HierarchicalSettings:
+    """The knobs: ``epsilon`` (Quality) trades time for error; the rest bound the work."""
+
+    epsilon: float = 1e-2          # link error bound / the scene's mean emitted exitance
+    max_level: int = 6             # element splits below an input triangle
+    min_area: float = 1e-6         # smallest element, as a fraction of the scene's area
+    tolerance: float = 1e-4        # Jacobi stop: residual power / emitted
+    max_rounds: int = 8
+    max_sweeps: int = 400
+    seed: int = 0
+
+
+@dataclass
+class HierarchicalResult:
+    """The adaptive leaves, their radiosity, and how the solve went."""
+
+    leaves: PatchScene
+    result: SolveResult
+    midpoint: dict                 # edge (lo << 32 | hi) -> midpoint vertex, for T-vertices
+    links: int
+    elements: int
+    rounds: list = field(default_factory=list)   # per round: links, leaves, seconds
+
+    def vertex_values(self, B: np.ndarray | None = None) -> np.ndarray:
+        """Radiosity (v, 3) at every vertex of ``leaves``: the area mean of the leaves around it,
+        then every T-vertex set on the line between its edge's ends, so colours have no cracks."""
+        from ..reconstruct import vertex_average
+
+        s = self.leaves
+        values = vertex_average(s.triangles, len(s.vertices), self.result.B if B is None else B, s.areas)
+        for m, a, b in t_vertices(s.triangles, self.midpoint):
+            values[m] = 0.5 * (values[a] + values[b])
+        return values
+
+
+def t_vertices(triangles: np.ndarray, midpoint: dict) -> list[tuple[int, int, int]]:
+    """(m, a, b) for every vertex m inside an edge (a, b) of a leaf, in the order that sets
+    ends before midpoints (m is the midpoint of a, b; a vertex of a leaf is on no leaf edge)."""
+    out = []
+    stack = []
+    for a, b in np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]).tolist():
+        stack.append((a, b))
+    seen = set()
+    while stack:
+        a, b = stack.pop()
+        key = (min(a, b) << 32) + max(a, b)
+        m = midpoint.get(key)
+        if m is None or key in seen:
+            continue
+        seen.add(key)
+        out.append((m, a, b))
+        stack += [(a, m), (m, b)]
+    return sorted(out)
+
+
+class HierarchicalRadiosity:
+    """Hierarchical radiosity over a PatchScene of input triangles.
+
+    ``external(tris (m, 3, 3), normals (m, 3)) -> H (m, points, 3)`` gives the irradiance of
+    lights outside the solve at a few points of each element; ``shown`` (n,) marks the input
+    triangles whose leaves are output (emitter backs are solved, not shown).
+    """
+
+    def __init__(self, scene: PatchScene, settings: HierarchicalSettings | None = None, *, external=None,
+                 shown: np.ndarray | None = None, caster=None):
+        from ..formfactors.raycast import EmbreeRays
+
+        self.settings = s = settings or HierarchicalSettings()
+        if not s.epsilon > 0:
+            raise SceneError(f"quality epsilon must be positive, got {s.epsilon}")
+        t0 = time.perf_counter()
+        self.scene = scene
+        self.shown = np.ones(scene.n, bool) if shown is None else np.asarray(shown, bool)
+        self.nodes = nd = Nodes(scene, external)
+        self.caster = caster or EmbreeRays(scene, 1)
+        self.evaluator = Evaluator(nd, self.caster, s.seed)
+        self.size0 = nd.size                                     # cluster tree nodes
+        self.proj_root = scene.areas[:, None] * np.maximum(scene.normals @ DIRECTIONS.T, 0.0)
+        self.opposite = nearest_direction(-DIRECTIONS)
+        self.cos_root = direction_cosines(scene.normals)
+        rows = nd.cluster_row
+        depth = np.full(self.size0, -1)
+        depth[nd.clusters] = nd.cluster_depth
+        self.by_depth = [nd.clusters[nd.cluster_depth == k] for k in range(int(depth.max()) + 1)] \
+            if len(nd.clusters) else []
+        self.proj = np.zeros((self.size0, len(DIRECTIONS)))
+        self.proj[nd.clusters] = nd.proj[rows[nd.clusters]]
+        self.proj[nd.element_root] = self.proj_root
+        self.power = float((nd.E[nd.element_root] * scene.areas[:, None]).sum(axis=0).max())
+        if not self.power > 0:
+            raise SceneError("nothing emits light: give a material emission or add a light that reaches a surface")
+        self.eps = s.epsilon * self.power / float(scene.areas.sum())     # W/m^2
+        self.min_area = s.min_area * float(scene.areas.sum())
+        self.Bn = nd.E[:nd.size].copy()
+        self.Brange = np.zeros(nd.size)
+        self._pull(nd.element_root, nd.element_root[:, None], self.Bn[nd.element_root])
+        self.links = Links.empty()
+        self.sweeps, self.history, self.times = 0, [], []
+        self.rounds: list[dict] = []
+        self.seconds = {"clusters": time.perf_counter() - t0, "refine": 0.0, "solve": 0.0}
+        self.done = False
+        self._t_start = time.perf_counter()
+
+    # -- state of the trees --------------------------------------------------------------
+    def _grow_state(self):
+        """New elements start with their parent's radiosity (split after every growth, so
+        parents are older)."""
+        nd, old = self.nodes, len(self.Bn)
+        par = nd.parent[old:nd.size]
+        self.Bn = np.concatenate([self.Bn, self.Bn[par]])
+        self.Brange = np.concatenate([self.Brange, np.zeros(nd.size - old)])
+
+    def can_split(self, n: np.ndarray) -> np.ndarray:
+        nd = self.nodes
+        return nd.cluster[n] | ((nd.level[n] < self.settings.max_level) & (nd.area[n] > 4 * self.min_area))
+
+    def errors(self, L: Links) -> np.ndarray:
+        """Error estimate of each link (see ``links``): W/m^2 at its receiver, worst channel."""
+        nd = self.nodes
+        src, rcv = L.src, L.rcv
+        cs, cr = nd.cluster[src], nd.cluster[rcv]
+        term = self._source_term(L)
+        rho = nd.rho[rcv]
+        rho[cr] = nd.rho_max[rcv[cr], None]
+        err = np.zeros(len(L))
+        ee = ~cs & ~cr
+        if ee.any():
+            g = L.mean[ee]
+            f = np.maximum(L.spread[ee], L.partial[ee] * g)
+            e = rho[ee] * (term[ee] * f[:, None] + (self.Brange[src[ee]] * g)[:, None])
+            err[ee] = e.max(axis=1)
+        o = ~ee
+        if o.any():
+            H = rho[o] * L.coef[o, :1] * term[o]
+            with np.errstate(invalid="ignore"):
+                err[o] = np.nan_to_num(H.max(axis=1) * (L.spread[o] + L.partial[o]), nan=np.inf, posinf=np.inf)
+            err[o & ~np.isfinite(L.spread)] = np.inf
+        return err
+
+    def _source_term(self, L: Links) -> np.ndarray:
+        """B of an element source; a cluster source's sum B A max(0, n.w) along the link's direction."""
+        nd = self.nodes
+        cs = nd.cluster[L.src]
+        term = self.Bn[L.src].copy()
+        if cs.any():
+            term[cs] = self.table[L.src[cs], L.d[cs]]
+        return term
+
+    # -- refinement ----------------------------------------------------------------------
+    def refine(self, src: np.ndarray, rcv: np.ndarray, cancel=None) -> Links:
+        """Evaluate candidate links, keep those within the bound, split the rest down to their children."""
+        nd = self.nodes
+        kept = []
+        total = len(self.links)
+        while len(src):
+            L = self.evaluator.evaluate(src, rcv)
+            err = self.errors(L)
+            cs, cr = self.can_split(L.src), self.can_split(L.rcv)
+            bigger = nd.radius[L.src] >= nd.radius[L.rcv]
+            split_src = cs & (bigger | ~cr)
+            need = (err > self.eps) & (cs | cr)
+            kept.append(L.take(~need))
+            total += int((~need).sum())
+            if total > MAX_LINKS:
+                raise SceneError(f"hierarchical radiosity needs more than {MAX_LINKS:,} links "
+                                 f"(about {MAX_LINKS * 100 / 2**30:.1f} GiB) at quality epsilon "
+                                 f"{self.settings.epsilon:g}: raise epsilon")
+            L, split_src = L.take(need), split_src[need]
+            ends = np.where(split_src, L.src, L.rcv)
+            nd.split(ends[~nd.cluster[ends]])
+            self._grow_state()
+            src, rcv = expand(nd, L.src, L.rcv, split_src)
+            if cancel is not None and cancel():
+                raise Cancelled("solve cancelled; nothing was changed")
+        return Links.concat(kept)
+
+    def refine_lights(self):
+        """Split elements over which the reflected outside light varies by more than epsilon."""
+        nd = self.nodes
+        if nd.external is None:
+            return
+        while True:
+            leaves = nd.leaves()
+            over = leaves[(nd.H_spread[leaves] * nd.area[leaves] > self.eps) & self.can_split(leaves)]
+            if not len(over):
+                return
+            nd.split(over)
+            self._grow_state()
+
+    # -- solving -------------------------------------------------------------------------
+    def _ancestors(self, leaves: np.ndarray) -> np.ndarray:
+        """(leaves, max level + 1) element ancestors of each leaf, itself first, padded with the
+        sentinel ``size`` (a zero row)."""
+        nd = self.nodes
+        depth = int(nd.level[leaves].max()) + 1 if len(leaves) else 1
+        anc = np.full((len(leaves), depth), nd.size, np.int64)
+        node = leaves.copy()
+        live = np.ones(len(leaves), bool)
+        for k in range(depth):
+            anc[live, k] = node[live]
+            up = nd.parent[node]
+            live &= (nd.level[node] > 0)
+            node = np.where(live, up, node)
+        return anc
+
+    def _pull(self, leaves: np.ndarray, anc: np.ndarray, B: np.ndarray):
+        """Element radiosity as area means of their leaves, its spread, and the clusters' tables."""
+        nd = self.nodes
+        n = nd.size + 1
+        w = nd.area[leaves]
+        total = np.zeros(n)
+        sums = np.zeros((n, 3))
+        lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+        bmax = B.max(axis=1)
+        for k in range(anc.shape[1]):
+            col = anc[:, k]
+            total += np.bincount(col, weights=w, minlength=n)
+            for c in range(3):
+                sums[:, c] += np.bincount(col, weights=w * B[:, c], minlength=n)
+            np.minimum.at(lo, col, bmax)
+            np.maximum.at(hi, col, bmax)
+        el = np.flatnonzero(total[:-1] > 0)
+        self.Bn[el] = sums[el] / total[el, None]
+        self.Brange[el] = hi[el] - lo[el]
+        table = np.zeros((self.size0, len(DIRECTIONS), 3))
+        roots = nd.element_root
+        table[roots] = self.proj_root[:, :, None] * self.Bn[roots][:, None, :]
+        for level in reversed(self.by_depth):
+            first = nd.first_child[level]
+            table[level] = table[first] + table[first + 1]
+        self.table = table
+
+    def _push_plan(self) -> list:
+        """Per element level below the input triangles: (elements, parents, child slots)."""
+        nd = self.nodes
+        plan = []
+        for ids in nd.elements_by_level()[1:]:
+            par = nd.parent[ids]
+            plan.append((ids, par, ids - nd.first_child[par]))
+        return plan
+
+    def _gather(self, leaves: np.ndarray, plan: list) -> np.ndarray:
+        """Irradiance (leaves, 6, 3) at the leaves' quadratic nodes, gathered over every link and
+        pushed down: from clusters by direction to their triangles, then down each element tree."""
+        nd, L = self.nodes, self.links
+        term = self._source_term(L)
+        cr = nd.cluster[L.rcv]
+        er = ~cr
+        n = nd.size
+        idx = (L.rcv[er, None] * 6 + np.arange(6)).ravel()
+        val = (L.coef[er, :, None] * term[er, None, :]).reshape(-1, 3)
+        H = np.stack([np.bincount(idx, weights=val[:, c], minlength=6 * n) for c in range(3)], axis=1)
+        H = H.reshape(n, 6, 3)
+        k = len(DIRECTIONS)
+        D = np.zeros((self.size0 * k, 3))
+        if cr.any():
+            idx = L.rcv[cr] * k + L.d[cr]
+            val = L.coef[cr, :1] * term[cr]
+            D = np.stack([np.bincount(idx, weights=val[:, c], minlength=len(D)) for c in range(3)], axis=1)
+        D = D.reshape(self.size0, k, 3)
+        for level in self.by_depth:                              # down the cluster tree
+            first = nd.first_child[level]
+            D[first] += D[level]
+            D[first + 1] += D[level]
+        roots = nd.element_root
+        H[roots] += np.einsum("kdc,kd->kc", D[roots], self.cos_root)[:, None, :]
+        for ids, par, slot in plan:                              # down the element trees
+            H[ids] += np.einsum("sij,sjc->sic", quadratic.PUSH[slot], H[par])
+        return H[leaves]
+
+    def solve(self, cancel=None):
+        """Jacobi sweeps with push-pull until the residual power is below the tolerance."""
+        t0 = time.perf_counter()
+        nd, s = self.nodes, self.settings
+        leaves = nd.leaves()
+        anc, plan = self._ancestors(leaves), self._push_plan()
+        E, rho, A = nd.E[leaves], nd.rho[leaves], nd.area[leaves]
+        B = self.Bn[leaves].copy()
+        self._pull(leaves, anc, B)
+        for _ in range(s.max_sweeps):
+            H6 = self._gather(leaves, plan)
+            B_new = E + rho * np.einsum("i,lic->lc", quadratic.MEAN, H6)
+            residual = float((A[:, None] * np.abs(B_new - B)).sum(axis=0).max()) / self.power
+            B = B_new
+            self._pull(leaves, anc, B)
+            self.sweeps += 1
+            self.history.append(residual)
+            self.times.append(time.perf_counter() - self._t_start)
+            if residual <= s.tolerance:
+                break
+            if cancel is not None and cancel():
+                raise Cancelled("solve cancelled; nothing was changed")
+        self.H6 = self._gather(leaves, plan)
+        self.leaf_ids, self.B = leaves, B
+        self.H = np.einsum("i,lic->lc", quadratic.MEAN, self.H6)
+        self.seconds["solve"] += time.perf_counter() - t0
+
+    # -- rounds --------------------------------------------------------------------------
+    def step(self, cancel=None) -> bool:
+        """One refine-solve round; True when no link needed refining (or the rounds ran out)."""
+        t0 = time.perf_counter()
+        nd = self.nodes
+        if not self.rounds:
+            self.refine_lights()
+            root = np.array([0])
+            self.links = self.refine(root, root, cancel)
+            refined = len(self.links)
+        else:
+            self.refine_lights()
+            err = self.errors(self.links)
+            need = (err > self.eps) & (self.can_split(self.links.src) | self.can_split(self.links.rcv))
+            refined = int(need.sum())
+            if refined:
+                L = self.links.take(need)
+                split_src = self.can_split(L.src) & ((nd.radius[L.src] >= nd.radius[L.rcv]) | ~self.can_split(L.rcv))
+                ends = np.where(split_src, L.src, L.rcv)
+                nd.split(ends[~nd.cluster[ends]])
+                self._grow_state()
+                src, rcv = expand(nd, L.src, L.rcv, split_src)
+                self.links = Links.concat([self.links.take(~need), self.refine(src, rcv, cancel)])
+        self.seconds["refine"] += time.perf_counter() - t0
+        if refined or not self.rounds:
+            self.solve(cancel)
+        self.rounds.append({"round": len(self.rounds), "links": len(self.links), "refined": refined,
+                            "leaves": int(len(self.leaf_ids)), "sweeps": self.sweeps,
+                            "seconds": round(time.perf_counter() - self._t_start, 3)})
+        self.done = refined == 0 or len(self.rounds) >= self.settings.max_rounds
+        return self.done
+
+    def run(self, cancel=None) -> HierarchicalResult:
+        while not self.step(cancel):
+            pass
+        return self.result()
+
+    def result(self) -> HierarchicalResult:
+        """The shown leaves as a PatchScene with their B, H and the books."""
+        nd, sc = self.nodes, self.scene
+        leaves = self.leaf_ids
+        roots = nd.root[leaves]
+        A = nd.area[leaves]
+        emitted = (nd.E[leaves] * A[:, None]).sum(axis=0)
+        absorbed = ((1 - nd.rho[leaves]) * self.H * A[:, None]).sum(axis=0)
+        received = (self.H * A[:, None]).sum(axis=0)
+        leaving = (self.B * A[:, None]).sum(axis=0)
+        unshot = ((nd.E[leaves] + nd.rho[leaves] * self.H - self.B) * A[:, None]).sum(axis=0)
+        show = self.shown[roots]
+        ids = leaves[show]
+        patches = PatchScene(nd.all_vertices(), nd.vids[ids], nd.rho[ids], nd.E[ids], sc.object_index[roots[show]],
+                             sc.material_index[roots[show]], list(sc.object_names), list(sc.material_names))
+        residual = self.history[-1] if self.history else 1.0
+        res = SolveResult(self.B[show], self.H[show], self.sweeps, residual <= self.settings.tolerance,
+                          list(self.history), list(self.times),
+                          {"form_factors": self.seconds["refine"], "solve": self.seconds["solve"],
+                           "clusters": self.seconds["clusters"]},
+                          "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
+        return HierarchicalResult(patches, res, dict(nd.midpoint), len(self.links),
+                                  int((~nd.cluster[:nd.size]).sum()), list(self.rounds))
