@@ -11,15 +11,16 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
 - with a cluster at either end: point to point between the ends' centres along w, the source
   sending its projected area A_proj(w) times its radiosity, the receiver taking cos per
   element (a cluster receiver keeps the light by direction and hands it down, ``solve``);
-  visibility by rays between random points of the two ends' triangles.
+  visibility by rays between random points of the two ends' triangles, weighted by how
+  much those triangles face each other.
 
 Error estimate of a link (W/m^2 at R, worst channel), against epsilon x the scene's mean
 emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the miss of the
-quadratic at R's check points (or a quarter of F's spread over R if more; F itself where
-visibility is partial: a shadow boundary crosses R); cluster links rho_R x carried
-irradiance x (the ends' angular size seen across the link, + 1 where visibility is
-partial). A link over the bound is replaced by the links of the children of its larger
-end; a link whose ends cannot split further is kept.
+quadratic at R's check points (or a quarter of F's spread over R if more, or the unoccluded
+F where any shadow ray was blocked: a shadow boundary may cross R); cluster links rho_R B_S
+(F x the ends' angular size seen across the link + the unoccluded F where any ray was
+blocked). A link over the bound is replaced by the links of the children of its larger end;
+a link whose ends cannot split further is kept.
 """
 from __future__ import annotations
 
@@ -37,6 +38,8 @@ RECEIVER_POINTS = quadratic.POINTS
 SPREAD_SHARE = 0.25
 #: Shadow rays per receiver point (element links) and per cluster link.
 VISIBILITY_RAYS = 4
+#: Point pairs per link with a cluster end (visibility between random points of the ends).
+CLUSTER_RAYS = 16
 #: Links evaluated per numpy batch (bounds the temporary memory).
 BATCH = 20_000
 
@@ -49,13 +52,13 @@ class Links:
     rcv: np.ndarray
     coef: np.ndarray       # (L, 6) transfer per unit source term at the receiver's nodes
     spread: np.ndarray     # element pairs: the quadratic's miss at the centroid; cluster links: angular size
-    partial: np.ndarray    # visibility between the ends is partial
+    occluded: np.ndarray   # unoccluded mean transfer where visibility is not complete, else 0
     d: np.ndarray          # table direction of travel S -> R
 
     @classmethod
     def empty(cls) -> "Links":
         z = np.zeros(0)
-        return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z.astype(bool), z.astype(np.int64))
+        return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z, z.astype(np.int64))
 
     @property
     def mean(self) -> np.ndarray:
@@ -66,13 +69,13 @@ class Links:
         return len(self.src)
 
     def take(self, keep: np.ndarray) -> "Links":
-        return Links(*(getattr(self, f)[keep] for f in ("src", "rcv", "coef", "spread", "partial", "d")))
+        return Links(*(getattr(self, f)[keep] for f in ("src", "rcv", "coef", "spread", "occluded", "d")))
 
     @staticmethod
     def concat(parts: list["Links"]) -> "Links":
         parts = [p for p in parts if len(p)] or [Links.empty()]
         return Links(*(np.concatenate([getattr(p, f) for p in parts])
-                       for f in ("src", "rcv", "coef", "spread", "partial", "d")))
+                       for f in ("src", "rcv", "coef", "spread", "occluded", "d")))
 
 
 def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
@@ -159,31 +162,39 @@ class Evaluator:
             return Links.empty()
         tri_s, tri_r, n_r = nd.tri[s], nd.tri[r], nd.normal[r]
         x = np.einsum("pk,lkc->lpc", RECEIVER_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
-        F = polygon_factor(x, n_r, tri_s)                                   # (L, P)
-        V = self._visible_from_points(x, tri_s, F > 0)
-        F = F * V
+        F0 = polygon_factor(x, n_r, tri_s)                                  # (L, P) unoccluded
+        V = self._visible_from_points(x, n_r, tri_s, nd.normal[s], F0 > 0)
+        F = F0 * V
         miss = np.abs(F[:, 6:] - F[:, :6] @ quadratic.AT_CHECK.T).max(axis=1)
         miss = np.maximum(miss, SPREAD_SHARE * (F.max(axis=1) - F.min(axis=1)))
-        partial = ((V > 0) & (V < 1)).any(axis=1)
-        links = Links(s, r, F[:, :6], miss, partial, self._direction(s, r))
-        return links.take(F.max(axis=1) > 0)
+        # a shadow boundary may cross R (or every ray was blocked and the samples missed where
+        # S shows): the unoccluded F bounds the light at stake
+        occluded = np.where(((V < 1) & (F0 > 0)).any(axis=1), F0[:, :6] @ quadratic.MEAN, 0.0)
+        links = Links(s, r, F[:, :6], miss, occluded, self._direction(s, r))
+        return links.take(F0.max(axis=1) > 0)
 
-    def _visible_from_points(self, x: np.ndarray, tri_s: np.ndarray, need: np.ndarray) -> np.ndarray:
-        """Fraction (L, P) of shadow rays from points x (L, P, 3) to random points on tri_s that arrive."""
+    def _visible_from_points(self, x: np.ndarray, n_r: np.ndarray, tri_s: np.ndarray, n_s: np.ndarray,
+                             need: np.ndarray) -> np.ndarray:
+        """Visible fraction (L, P) of S from points x (L, P, 3) facing ``n_r``: shadow rays to
+        random points on S, each weighted by the cosines at both ends, so the part of S
+        behind x's horizon (already clipped from F) does not count as shadow."""
         L, P = need.shape
         V = np.zeros((L, P))
         li, pi = np.nonzero(need)
         if not len(li):
             return V
         m = VISIBILITY_RAYS
-        cells = np.arange(m)
-        u = (cells + self.rng.random((len(li), m))) / m                    # stratified in u
+        u = (np.arange(m) + self.rng.random((len(li), m))) / m              # stratified in u
         targets = triangle_points(tri_s[li][:, None], u, self.rng.random((len(li), m)))
-        origin = np.repeat(x[li, pi], m, axis=0)
-        d = targets.reshape(-1, 3) - origin
-        dist = np.linalg.norm(d, axis=1)
-        ok = self.caster.reaches(origin, d / np.maximum(dist, 1e-300)[:, None], dist * (1 - 1e-4))
-        V[li, pi] = ok.reshape(-1, m).mean(axis=1)
+        d = targets - x[li, pi][:, None]
+        dist = np.linalg.norm(d, axis=-1)
+        d = d / np.maximum(dist, 1e-300)[..., None]
+        w = np.maximum(np.einsum("kmc,kc->km", d, n_r[li]), 0) * np.maximum(-np.einsum("kmc,kc->km", d, n_s[li]), 0)
+        ki, mi = np.nonzero(w > 0)
+        ok = np.zeros(w.shape)
+        ok[ki, mi] = self.caster.reaches(x[li, pi][ki], d[ki, mi], dist[ki, mi] * (1 - 1e-4))
+        total = w.sum(axis=1)
+        V[li, pi] = np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 1.0)
         return V
 
     def _direction(self, s, r) -> np.ndarray:
@@ -198,29 +209,33 @@ class Evaluator:
         dist = np.linalg.norm(w, axis=1)
         w = w / np.maximum(dist, 1e-300)[:, None]
         reach = nd.radius[s] + nd.radius[r]
-        far = dist > reach
         geo = np.ones(len(s))
         es, er = ~nd.cluster[s], ~nd.cluster[r]
         geo[es] *= nd.area[s[es]] * np.maximum(np.einsum("ij,ij->i", nd.normal[s[es]], w[es]), 0.0)
         geo[er] *= np.maximum(-np.einsum("ij,ij->i", nd.normal[r[er]], w[er]), 0.0)
-        # an end wholly behind the other end's plane gets nothing
-        behind_s = es & (np.einsum("ij,ij->i", nd.center[r] - nd.tri[s, 0], nd.normal[s]) < -nd.radius[r])
-        behind_r = er & (np.einsum("ij,ij->i", nd.center[s] - nd.tri[r, 0], nd.normal[r]) < -nd.radius[s])
-        keep = ~(behind_s | behind_r) & (~far | (geo > 0))
-        s, r, w, dist, geo, far, reach = s[keep], r[keep], w[keep], dist[keep], geo[keep], far[keep], reach[keep]
+        # where an element end is: the other end's sphere wholly behind its plane (nothing
+        # passes), wholly in front (the centre-to-centre cosine holds), or across it (refine)
+        side_s = np.where(es, np.einsum("ij,ij->i", nd.center[r] - nd.tri[s, 0], nd.normal[s]), np.inf)
+        side_r = np.where(er, np.einsum("ij,ij->i", nd.center[s] - nd.tri[r, 0], nd.normal[r]), np.inf)
+        behind = (side_s < -nd.radius[r]) | (side_r < -nd.radius[s])
+        clear = (side_s > nd.radius[r]) & (side_r > nd.radius[s])
+        far = (dist > reach) & clear
+        s, r, w, dist, geo, far, reach = (a[~behind] for a in (s, r, w, dist, geo, far, reach))
         V = self._visible_between(s, r)
-        coef = np.where(far, V * geo / (np.pi * np.maximum(dist ** 2, 1e-300)), 0.0)
-        spread = np.where(far, reach / np.maximum(dist, 1e-300), np.inf)   # near: must refine
-        links = Links(s, r, np.repeat(coef[:, None], 6, axis=1), spread, (V > 0) & (V < 1), nearest_direction(w))
-        return links.take(~far | (V > 0))
+        free = np.where(far, geo / (np.pi * np.maximum(dist ** 2, 1e-300)), 0.0)
+        spread = np.where(far, reach / np.maximum(dist, 1e-300), np.inf)   # near or across: must refine
+        links = Links(s, r, np.repeat((V * free)[:, None], 6, axis=1), spread, np.where(V < 1, free, 0.0),
+                      nearest_direction(w))
+        return links
 
-    def _points_on(self, nodes_: np.ndarray, m: int) -> np.ndarray:
-        """m random points (L, m, 3) on each node's triangles, chosen by area."""
+    def _points_on(self, nodes_: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """m random points (L, m, 3) on each node's triangles, chosen by area, and their normals."""
         nd = self.nodes
-        out = np.empty((len(nodes_), m, 3))
+        out, normal = np.empty((len(nodes_), m, 3)), np.empty((len(nodes_), m, 3))
         el = ~nd.cluster[nodes_]
         u, v = self.rng.random((len(nodes_), m)), self.rng.random((len(nodes_), m))
         out[el] = triangle_points(nd.tri[nodes_[el]][:, None], u[el], v[el])
+        normal[el] = nd.normal[nodes_[el]][:, None]
         cl = np.flatnonzero(~el)
         if len(cl):
             lo, hi = self.span[nodes_[cl], 0], self.span[nodes_[cl], 1]
@@ -230,18 +245,27 @@ class Evaluator:
             t = nd.order[k]
             s = nd.scene
             out[cl] = triangle_points(s.vertices[s.triangles[t]], self.rng.random(t.shape), self.rng.random(t.shape))
-        return out
+            normal[cl] = s.normals[t]
+        return out, normal
 
     def _visible_between(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """Fraction (L,) of rays between random points of the two ends that arrive."""
-        m = VISIBILITY_RAYS
-        a, b = self._points_on(s, m).reshape(-1, 3), self._points_on(r, m).reshape(-1, 3)
+        """Visible fraction (L,) between the two ends: rays between random points of their
+        triangles, each pair weighted by how much its triangles face each other (a cluster's
+        faces turned away are accounted for by its cosines, not by its own shadow)."""
+        m = CLUSTER_RAYS
+        a, na = self._points_on(s, m)
+        b, nb = self._points_on(r, m)
         d = b - a
-        dist = np.linalg.norm(d, axis=1)
-        d = d / np.maximum(dist, 1e-300)[:, None]
+        dist = np.linalg.norm(d, axis=-1)
+        d = d / np.maximum(dist, 1e-300)[..., None]
+        w = np.maximum(np.einsum("lmc,lmc->lm", na, d), 0) * np.maximum(-np.einsum("lmc,lmc->lm", nb, d), 0)
+        li, mi = np.nonzero(w > 0)
         eps = self.caster.epsilon
-        ok = self.caster.reaches(a + eps * d, d, np.maximum(dist * (1 - 1e-4) - eps, 0.0))
-        return ok.reshape(-1, m).mean(axis=1)
+        ok = np.zeros(w.shape)
+        ok[li, mi] = self.caster.reaches(a[li, mi] + eps * d[li, mi], d[li, mi],
+                                         np.maximum(dist[li, mi] * (1 - 1e-4) - eps, 0.0))
+        total = w.sum(axis=1)
+        return np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 0.0)
 
 
 def children(nodes: Nodes, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

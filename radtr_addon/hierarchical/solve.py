@@ -163,15 +163,15 @@ class HierarchicalRadiosity:
         ee = ~cs & ~cr
         if ee.any():
             g = L.mean[ee]
-            f = np.maximum(L.spread[ee], L.partial[ee] * g)
+            f = np.maximum(L.spread[ee], L.occluded[ee])
             e = rho[ee] * (term[ee] * f[:, None] + (self.Brange[src[ee]] * g)[:, None])
             err[ee] = e.max(axis=1)
         o = ~ee
         if o.any():
-            H = rho[o] * L.coef[o, :1] * term[o]
             with np.errstate(invalid="ignore"):
-                err[o] = np.nan_to_num(H.max(axis=1) * (L.spread[o] + L.partial[o]), nan=np.inf, posinf=np.inf)
-            err[o & ~np.isfinite(L.spread)] = np.inf
+                f = L.coef[o, 0] * L.spread[o] + L.occluded[o]
+            err[o] = np.where(np.isfinite(L.spread[o]), (rho[o] * term[o] * np.nan_to_num(f)[:, None]).max(axis=1),
+                              np.inf)
         return err
 
     def _source_term(self, L: Links) -> np.ndarray:
@@ -196,7 +196,7 @@ class HierarchicalRadiosity:
             bigger = nd.radius[L.src] >= nd.radius[L.rcv]
             split_src = cs & (bigger | ~cr)
             need = (err > self.eps) & (cs | cr)
-            kept.append(L.take(~need))
+            kept.append(L.take(~need & (L.coef.max(axis=1) > 0)))
             total += int((~need).sum())
             if total > MAX_LINKS:
                 raise SceneError(f"hierarchical radiosity needs more than {MAX_LINKS:,} links "
@@ -218,7 +218,7 @@ class HierarchicalRadiosity:
             return
         while True:
             leaves = nd.leaves()
-            over = leaves[(nd.H_spread[leaves] * nd.area[leaves] > self.eps) & self.can_split(leaves)]
+            over = leaves[(nd.H_spread[leaves] > self.eps) & self.can_split(leaves)]
             if not len(over):
                 return
             nd.split(over)
@@ -363,6 +363,38 @@ class HierarchicalRadiosity:
                             "seconds": round(time.perf_counter() - self._t_start, 3)})
         self.done = refined == 0 or len(self.rounds) >= self.settings.max_rounds
         return self.done
+
+    def leaf_at(self, t: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The leaf element (m,) holding each point of input triangle ``t`` (m,) at barycentric
+        ``bary`` (m, 3), and the point's barycentric coordinates in it."""
+        nd = self.nodes
+        node = nd.element_root[np.asarray(t)].copy()
+        lam = np.array(bary, float)
+        while True:
+            inner = nd.first_child[node] >= 0
+            if not inner.any():
+                return node, lam
+            i = np.flatnonzero(inner)
+            l1, l2, l3 = lam[i].T
+            slot = np.where(l1 > 0.5, 1, np.where(l2 > 0.5, 2, np.where(l3 > 0.5, 3, 0)))
+            mu = np.stack([1 - 2 * l3, 1 - 2 * l1, 1 - 2 * l2], 1)           # centre child
+            twice = 2 * lam[i]
+            for k in (1, 2, 3):
+                sel = slot == k
+                m = twice[sel]
+                m[:, k - 1] = 0
+                m[:, k - 1] = 1 - m.sum(axis=1)
+                mu[sel] = m
+            node[i] = nd.first_child[node[i]] + slot
+            lam[i] = mu
+
+    def radiosity_at(self, t: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """B (m, 3) at points of input triangles: E + rho H with H the leaf's quadratic there."""
+        nd = self.nodes
+        leaf, lam = self.leaf_at(t, bary)
+        row = np.searchsorted(self.leaf_ids, leaf)
+        H = np.einsum("mi,mic->mc", quadratic.basis(lam), self.H6[row])
+        return nd.E[leaf] + nd.rho[leaf] * H
 
     def run(self, cancel=None) -> HierarchicalResult:
         while not self.step(cancel):
