@@ -69,7 +69,10 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--split", default=d.split, choices=("none", "uniform", "adaptive"), help="paraboloid split")
     p.add_argument("--split-level", type=int, default=d.split_level, help="paraboloid uniform split N")
     p.add_argument("--rays", type=int, default=d.rays, help="embree rays per patch")
-    p.add_argument("--solver", default=d.solver, choices=(*SOLVERS, "user"), help="radiosity solver")
+    p.add_argument("--solver", default=d.solver, choices=(*SOLVERS, "user", "hierarchical"),
+                   help="radiosity solver (hierarchical: adaptive patches and links, see --quality)")
+    p.add_argument("--quality", type=float, default=d.quality,
+                   help="hierarchical: error bound of a link / mean emitted exitance (smaller: finer, slower)")
     p.add_argument("--user-solver", default=d.user_solver,
                    help="with --solver user: module:function or file.py:function (see examples/)")
     p.add_argument("--tolerance", type=float, default=d.tolerance, help="residual/emitted power to stop at")
@@ -91,7 +94,7 @@ def settings_from(args):
 
     return Settings(max_area=args.max_area, levels=args.levels, method=args.method, resolution=args.resolution,
                     rotate=args.rotate, split=args.split, split_level=args.split_level, rays=args.rays,
-                    solver=args.solver, user_solver=args.user_solver, tolerance=args.tolerance,
+                    solver=args.solver, user_solver=args.user_solver, quality=args.quality, tolerance=args.tolerance,
                     max_iterations=args.iterations,
                     precision=args.precision, ambient=args.ambient, gather_rays=args.gather_rays,
                     max_reflectance=args.max_reflectance, exposure=args.exposure, sky=args.sky,

@@ -19,6 +19,7 @@ from ..formfactors.methods import FormFactors, FormFactorSettings
 from ..hierarchy import subdivide
 from ..lights import Light, direct_irradiance, sky_irradiance
 from ..reconstruct import VertexRadiosity
+from ..scene import PatchScene
 from ..solvers import make_solver
 from ..textures import varying_reflectance
 from .extract import extract, source_objects
@@ -47,7 +48,8 @@ class Settings:
     split: str = "adaptive"        # paraboloid: none | uniform | adaptive
     split_level: int = 4           # paraboloid uniform split N
     rays: int = 1024               # embree rays per row
-    solver: str = "shooting"       # shooting | jacobi | gauss_seidel | direct | user
+    solver: str = "shooting"       # shooting | jacobi | gauss_seidel | direct | user | hierarchical
+    quality: float = 0.03          # hierarchical: link error bound / the scene's mean emitted exitance
     user_solver: str = ""          # solver "user": module:function or file.py:function
     tolerance: float = 1e-3        # residual (unshot) power / emitted power
     max_iterations: int = 20_000   # shots or sweeps
@@ -74,7 +76,9 @@ class Settings:
                 ("max area", s.max_area, s.max_area >= 0 and np.isfinite(s.max_area), "0 (auto) or more"),
                 ("levels", s.levels, s.levels >= 0, "0 or more"),
                 ("resolution", s.resolution, s.resolution >= 2, "at least 2"),
-                ("solver", s.solver, s.solver in (*SOLVERS, "user"), f"one of {', '.join(SOLVERS)} or user"),
+                ("solver", s.solver, s.solver in (*SOLVERS, "user", "hierarchical"),
+                 f"one of {', '.join(SOLVERS)}, user or hierarchical"),
+                ("quality", s.quality, 0 < s.quality < np.inf, "above 0 (smaller: finer, slower)"),
                 ("tolerance", s.tolerance, 0 <= s.tolerance < np.inf, "0 or more"),
                 ("iterations", s.max_iterations, s.max_iterations >= 1, "at least 1"),
                 ("precision", s.precision, s.precision in ("float32", "float64"), "float32 or float64"),
@@ -133,7 +137,7 @@ class SolveJob:
     """Extract, subdivide and prepare form factors at construction; shoot with ``advance``."""
 
     def __init__(self, bl_scene, depsgraph, view_layer, settings: Settings, log=print):
-        self.bl_scene, self.settings, self.log = bl_scene, settings, log
+        self.bl_scene, self.settings, self.log, self.view_layer = bl_scene, settings, log, view_layer
         self.stats = Stats()
         settings.validate()
         with self._stage("extract"):
@@ -144,6 +148,16 @@ class SolveJob:
         for w in self.extraction.warnings:
             log(f"RadTR warning: {w}")
         self.stats.warnings += self.extraction.warnings
+        if settings.solver == "hierarchical":
+            self._prepare_hierarchical()
+        else:
+            self._prepare_uniform()
+        self.result = None
+        self.objects = []                       # the result objects, once written
+
+    def _prepare_uniform(self):
+        """Patches by uniform subdivision, their form factors and the chosen solver."""
+        settings, log = self.settings, self.log
         with self._stage("subdivide"):
             base = self.extraction.scene
             max_area = settings.max_area or auto_max_area(base.areas.sum(), settings.levels)
@@ -156,7 +170,7 @@ class SolveJob:
                                                                 settings.max_reflectance)
             self.stats.warnings += warnings
         with self._stage("lights"):
-            self._add_lights(bl_scene, view_layer)
+            self._add_lights(self.bl_scene, self.view_layer)
         self.leaves.validate()
         check_writable(self.leaves.emission, lambda i: f"emission of {self.leaves.patch_label(i)}")
         with self._stage("form_factor_init"):
@@ -168,8 +182,75 @@ class SolveJob:
             self.solver = make_solver(settings.solver, self.leaves, self.rows, tol=settings.tolerance,
                                       max_iterations=settings.max_iterations, dtype=settings.precision,
                                       user=settings.user_solver)
-        self.result = None
-        self.objects = []                       # the result objects, once written
+
+    def _prepare_hierarchical(self):
+        """Hierarchical radiosity over the input triangles (``hierarchical``): the leaves are
+        made while solving; lights and the World reach each element as it is made."""
+        from ..hierarchical import HierarchicalRadiosity, HierarchicalSettings
+
+        settings = self.settings
+        if settings.sky != "none":
+            raise SettingsError("the research sky (Sky) needs a uniform solve; use the World for a hierarchical one")
+        base = self.extraction.scene
+        if self.extraction.textures or self.extraction.attributes:
+            with self._stage("textures"):
+                base.rho, warnings = varying_reflectance(self.extraction, subdivide(base, 0.0, 0),
+                                                         settings.max_reflectance)
+            self.stats.warnings += warnings
+        base.validate()
+        check_writable(base.emission, lambda i: f"emission of {base.patch_label(i)}")
+        scene, shown = self._with_emitter_backs(base)
+        with self._stage("lights"):
+            external = self._external_light(scene)
+        self.hierarchy, self.rows = None, None
+        with self._stage("solver_init"):
+            self.solver = HierarchicalRadiosity(scene, HierarchicalSettings(epsilon=settings.quality,
+                                                tolerance=settings.tolerance), external=external, shown=shown)
+        self.leaves = base
+
+    def _with_emitter_backs(self, base):
+        """``base`` plus, for two-sided emitting materials, each emitting triangle's back as a
+        black emitter of its own (solved, not shown), and the mask of the triangles shown."""
+        two = np.isin(base.material_index, list(self.extraction.two_sided))
+        ids = np.flatnonzero(two & (base.emission.max(axis=1) > 0))
+        if not len(ids):
+            return base, None
+        tris = np.concatenate([base.triangles, base.triangles[ids][:, ::-1]])
+        scene = PatchScene(base.vertices, tris, np.concatenate([base.rho, np.zeros((len(ids), 3))]),
+                           np.concatenate([base.emission, base.emission[ids]]),
+                           np.concatenate([base.object_index, base.object_index[ids]]),
+                           np.concatenate([base.material_index, base.material_index[ids]]),
+                           list(base.object_names), list(base.material_names))
+        return scene, np.arange(scene.n) < base.n
+
+    def _external_light(self, scene):
+        """``external(tris, normals)``: irradiance of the Light objects and the World at the
+        ``PATCH_POINTS`` of elements, or None when there are none."""
+        from ..formfactors.raycast import EmbreeRays
+        from ..lights import PATCH_POINTS, irradiance_at
+
+        lights, warnings = scene_lights(self.bl_scene, self.view_layer)
+        sky, sky_warnings = world_radiance(self.bl_scene)
+        for w in warnings + sky_warnings:
+            self.log(f"RadTR warning: {w}")
+        self.stats.warnings += warnings + sky_warnings
+        self.lights = lights
+        if not lights and sky is None:
+            return None
+        caster = EmbreeRays(scene, 1)
+
+        def external(tris, normals):
+            k = len(PATCH_POINTS)
+            n = np.repeat(normals, k, axis=0)
+            points = np.einsum("pc,ncd->npd", PATCH_POINTS, tris).reshape(-1, 3) + caster.epsilon * n
+            H = np.zeros((len(tris), k, 3))
+            if lights:
+                H += irradiance_at(points, n, lights, caster)[0].reshape(len(tris), k, 3)
+            if sky is not None:
+                part = PatchScene(tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3), 0.0, 0.0, 0, 0)
+                H += sky_irradiance(part, sky, caster=caster)[:, None, :]
+            return H
+        return external
 
     def _add_lights(self, bl_scene, view_layer):
         """Light objects' and the World's direct light, reflected once, joins the emission (``lights``)."""
@@ -262,10 +343,17 @@ class SolveJob:
     def finish(self) -> list:
         """Write the result into the file; returns the result objects."""
         self.result = r = self.solver.result()
+        vertices = None
+        if self.settings.solver == "hierarchical":
+            self.adaptive, self.result = r, r.result
+            self.leaves, r = r.leaves, r.result
+            self.stats.patches = self.leaves.n
+            if not self.settings.gather_rays:
+                vertices = self.adaptive.mesh_vertex_values
         self.stats.seconds["form_factors"] = r.seconds["form_factors"]
         self.stats.seconds["solve"] = r.seconds["solve"]
         B = r.display(self.leaves.rho) if self.settings.ambient else r.B
-        vertices = VertexRadiosity(self.leaves, B, self.settings.gather_rays)
+        vertices = vertices or VertexRadiosity(self.leaves, B, self.settings.gather_rays)
         with self._stage("write"):
             self.objects = objects = write_results(self.bl_scene, self.extraction, self.leaves, B,
                                                    self.settings.exposure, self.settings.mode, vertices)
@@ -287,6 +375,8 @@ class SolveJob:
                  + (", stopped at the iteration cap (Continue goes on)" if r.iterations >= self.solver.max_iterations
                     else ""))
         inst = f" ({self.instances:,} instances)" if self.instances else ""
+        if r.method == "hierarchical":
+            inst += f" ({self.adaptive.links:,} links, {len(self.adaptive.rounds)} rounds)"
         return (f"{self.leaves.n:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
                 f"{state}; energy balance error {r.balance_error():.1e}")
 

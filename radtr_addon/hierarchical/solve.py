@@ -54,20 +54,31 @@ class HierarchicalResult:
     leaves: PatchScene
     result: SolveResult
     midpoint: dict                 # edge (lo << 32 | hi) -> midpoint vertex, for T-vertices
+    corner_B: np.ndarray           # (n, 3 corners, 3) radiosity at each leaf's corners (its quadratic)
     links: int
     elements: int
     rounds: list = field(default_factory=list)   # per round: links, leaves, seconds
 
-    def vertex_values(self, B: np.ndarray | None = None) -> np.ndarray:
-        """Radiosity (v, 3) at every vertex of ``leaves``: the area mean of the leaves around it,
-        then every T-vertex set on the line between its edge's ends, so colours have no cracks."""
-        from ..reconstruct import vertex_average
-
+    def vertex_values(self) -> np.ndarray:
+        """Radiosity (v, 3) at every vertex of ``leaves``: the area mean of the leaves' own
+        corner values there, then every T-vertex set on the line between its edge's ends, so
+        colours have no cracks."""
         s = self.leaves
-        values = vertex_average(s.triangles, len(s.vertices), self.result.B if B is None else B, s.areas)
+        w = np.repeat(s.areas, 3)
+        idx = s.triangles.ravel()
+        total = np.bincount(idx, weights=w, minlength=len(s.vertices))
+        corner = self.corner_B.reshape(-1, 3)
+        values = np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=len(s.vertices))
+                           for c in range(3)], axis=1) / np.maximum(total, 1e-300)[:, None]
         for m, a, b in t_vertices(s.triangles, self.midpoint):
             values[m] = 0.5 * (values[a] + values[b])
         return values
+
+    def mesh_vertex_values(self, part) -> np.ndarray:
+        """``vertex_values`` at a result mesh's vertices (``reconstruct.MeshPart``)."""
+        if not hasattr(self, "_vertex_values"):
+            self._vertex_values = self.vertex_values()
+        return self._vertex_values[part.vertex_ids]
 
 
 def t_vertices(triangles: np.ndarray, midpoint: dict) -> list[tuple[int, int, int]]:
@@ -134,9 +145,27 @@ class HierarchicalRadiosity:
         self.links = Links.empty()
         self.sweeps, self.history, self.times = 0, [], []
         self.rounds: list[dict] = []
-        self.seconds = {"clusters": time.perf_counter() - t0, "refine": 0.0, "solve": 0.0}
+        self.stage_seconds = {"clusters": time.perf_counter() - t0, "refine": 0.0, "solve": 0.0}
         self.done = False
         self._t_start = time.perf_counter()
+        self.tol, self.max_iterations = s.tolerance, s.max_rounds
+
+    # -- the interface SolveJob drives (as the other solvers') ---------------------------
+    @property
+    def iterations(self) -> int:
+        return len(self.rounds)
+
+    @property
+    def residual(self) -> float:
+        return self.history[-1] if self.history else 1.0
+
+    @property
+    def phase(self) -> str:
+        return f"hierarchical round {len(self.rounds) + 1}, {len(self.links):,} links"
+
+    @property
+    def seconds(self) -> float:
+        return time.perf_counter() - self._t_start
 
     # -- state of the trees --------------------------------------------------------------
     def _grow_state(self):
@@ -330,11 +359,12 @@ class HierarchicalRadiosity:
         self.H6 = self._gather(leaves, plan)
         self.leaf_ids, self.B = leaves, B
         self.H = np.einsum("i,lic->lc", quadratic.MEAN, self.H6)
-        self.seconds["solve"] += time.perf_counter() - t0
+        self.stage_seconds["solve"] += time.perf_counter() - t0
 
     # -- rounds --------------------------------------------------------------------------
-    def step(self, cancel=None) -> bool:
-        """One refine-solve round; True when no link needed refining (or the rounds ran out)."""
+    def step(self, count: int = 1, cancel=None) -> bool:
+        """One refine-solve round (whatever ``count``); True when no link needed refining
+        (or the rounds ran out)."""
         t0 = time.perf_counter()
         nd = self.nodes
         if not self.rounds:
@@ -355,7 +385,7 @@ class HierarchicalRadiosity:
                 self._grow_state()
                 src, rcv = expand(nd, L.src, L.rcv, split_src)
                 self.links = Links.concat([self.links.take(~need), self.refine(src, rcv, cancel)])
-        self.seconds["refine"] += time.perf_counter() - t0
+        self.stage_seconds["refine"] += time.perf_counter() - t0
         if refined or not self.rounds:
             self.solve(cancel)
         self.rounds.append({"round": len(self.rounds), "links": len(self.links), "refined": refined,
@@ -396,8 +426,14 @@ class HierarchicalRadiosity:
         H = np.einsum("mi,mic->mc", quadratic.basis(lam), self.H6[row])
         return nd.E[leaf] + nd.rho[leaf] * H
 
+    def resume(self, more_rounds: int):
+        """Allow ``more_rounds`` refine-solve rounds after the cap."""
+        self.settings.max_rounds += more_rounds
+        self.max_iterations = self.settings.max_rounds
+        self.done = False
+
     def run(self, cancel=None) -> HierarchicalResult:
-        while not self.step(cancel):
+        while not self.step(cancel=cancel):
             pass
         return self.result()
 
@@ -419,8 +455,10 @@ class HierarchicalRadiosity:
         residual = self.history[-1] if self.history else 1.0
         res = SolveResult(self.B[show], self.H[show], self.sweeps, residual <= self.settings.tolerance,
                           list(self.history), list(self.times),
-                          {"form_factors": self.seconds["refine"], "solve": self.seconds["solve"],
-                           "clusters": self.seconds["clusters"]},
+                          {"form_factors": self.stage_seconds["refine"], "solve": self.stage_seconds["solve"],
+                           "clusters": self.stage_seconds["clusters"]},
                           "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
-        return HierarchicalResult(patches, res, dict(nd.midpoint), len(self.links),
+        corner_B = nd.E[ids][:, None] + nd.rho[ids][:, None] * np.einsum("ki,lic->lkc", quadratic.AT_CORNERS,
+                                                                          self.H6[show])
+        return HierarchicalResult(patches, res, dict(nd.midpoint), corner_B, len(self.links),
                                   int((~nd.cluster[:nd.size]).sum()), list(self.rounds))
