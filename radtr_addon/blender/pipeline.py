@@ -26,6 +26,8 @@ from .extract import extract, source_objects
 from .lights import scene_lights, world_radiance
 from .write import check_replaceable, check_writable, write_results
 
+#: Cosine rays per element that sample the World in a hierarchical solve.
+SKY_RAYS = 256
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
 AUTO_PATCHES = 2000
 #: Peak bytes per Embree ray in flight (a form-factor row or a vertex gather; measured).
@@ -237,7 +239,7 @@ class SolveJob:
         self.lights = lights
         if not lights and sky is None:
             return None
-        caster = EmbreeRays(scene, 1)
+        caster = EmbreeRays(scene, SKY_RAYS)                   # rays per element for the World
 
         def external(tris, normals):
             k = len(PATCH_POINTS)

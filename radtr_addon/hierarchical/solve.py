@@ -316,14 +316,14 @@ class HierarchicalRadiosity:
         idx = (L.rcv[er, None] * 6 + np.arange(6)).ravel()
         val = (L.coef[er, :, None] * term[er, None, :]).reshape(-1, 3)
         H = np.stack([np.bincount(idx, weights=val[:, c], minlength=6 * n) for c in range(3)], axis=1)
-        H = H.reshape(n, 6, 3)
+        H = H.reshape(n, 6, 3).astype(float)                     # (bincount of nothing is int)
         k = len(DIRECTIONS)
         D = np.zeros((self.size0 * k, 3))
         if cr.any():
             idx = L.rcv[cr] * k + L.d[cr]
             val = L.coef[cr, :1] * term[cr]
             D = np.stack([np.bincount(idx, weights=val[:, c], minlength=len(D)) for c in range(3)], axis=1)
-        D = D.reshape(self.size0, k, 3)
+        D = D.reshape(self.size0, k, 3).astype(float)
         for level in self.by_depth:                              # down the cluster tree
             first = nd.first_child[level]
             D[first] += D[level]

@@ -1,0 +1,204 @@
+"""Hierarchical radiosity against closed forms, conservation, a uniform direct solve and itself.
+
+Engine tests (no bpy) use scenes built from arrays; the Cornell box test reads the bundled
+scene through Blender. Each number checked comes from outside the hierarchical code: the
+white furnace B = E / (1 - rho), Howell's form factors, Lambert's point-to-polygon closed
+form (``formfactors.closed_form``), Embree form factors with the direct solver.
+"""
+import numpy as np
+import pytest
+from geometry import PARALLEL_UNIT_SQUARES, PERPENDICULAR_UNIT_SQUARES, cube, squares
+
+from radtr_addon.formfactors.closed_form import point_to_polygon
+from radtr_addon.hierarchical import HierarchicalRadiosity, HierarchicalSettings
+from radtr_addon.scene import PatchScene
+
+
+def run(scene, quality=0.03, **kw):
+    hr = HierarchicalRadiosity(scene, HierarchicalSettings(epsilon=quality, **kw))
+    return hr, hr.run()
+
+
+def quad(corners):
+    """Two triangles of the quad a, b, c, d (counter-clockwise seen from its front)."""
+    return [[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]
+
+
+def build(parts):
+    """A PatchScene from (quads as 4 corner points, rho, emission) parts, one object each."""
+    V, T, rho, E, obj = [], [], [], [], []
+    for k, (quads, r, e) in enumerate(parts):
+        for q in quads:
+            base = len(V)
+            V += list(q)
+            T += [[base, base + 1, base + 2], [base, base + 2, base + 3]]
+            rho += [r, r]
+            E += [e, e]
+            obj += [k, k]
+    return PatchScene(np.array(V, float), T, np.array(rho, float)[:, None] * np.ones(3),
+                      np.array(E, float)[:, None] * np.ones(3), obj, 0, [f"part{k}" for k in range(len(parts))])
+
+
+def test_white_furnace_is_uniform_and_keeps_its_light():
+    hr, r = run(cube(1.0), quality=0.01)
+    B = r.result.B[:, 0]
+    A = r.leaves.areas
+    rms = np.sqrt((A * (B / 2.0 - 1) ** 2).sum() / A.sum())
+    assert rms < 0.02 and np.abs(B / 2.0 - 1).max() < 0.06       # E / (1 - rho) = 2
+    # closed box: what leaves the surfaces is received by them (the books, from B and H alone)
+    assert abs(r.result.escaped[0]) < 0.03 * r.result.emitted[0]
+    assert r.result.balance_error() < 1e-3
+
+
+@pytest.mark.parametrize("perpendicular, exact", [(False, PARALLEL_UNIT_SQUARES), (True, PERPENDICULAR_UNIT_SQUARES)])
+def test_transfer_between_unit_squares_matches_howell(perpendicular, exact):
+    s = squares(perpendicular=perpendicular)
+    s.emission[:2], s.rho[:2] = 1.0, 0.0
+    hr, r = run(s, quality=0.001)
+    lit = r.leaves.emission.max(axis=1) == 0
+    A = r.leaves.areas[lit]
+    assert (A * r.result.irradiance[lit, 0]).sum() / A.sum() == pytest.approx(exact, rel=0.01)
+
+
+def tiled_box(m):
+    """The closed unit cube facing inwards, each face m x m input squares; one corner tile emits."""
+    faces = [((0, 0, 0), (1, 0, 0), (0, 1, 0)), ((0, 0, 1), (0, 1, 0), (1, 0, 0)),
+             ((0, 0, 0), (0, 0, 1), (1, 0, 0)), ((0, 1, 0), (1, 0, 0), (0, 0, 1)),
+             ((0, 0, 0), (0, 1, 0), (0, 0, 1)), ((1, 0, 0), (0, 0, 1), (0, 1, 0))]
+    quads = []
+    for o, u, v in faces:
+        o, u, v = map(np.array, (o, u, v))
+        quads += [[o + (u * (i + a) + v * (j + b)) / m for a, b in ((0, 0), (1, 0), (1, 1), (0, 1))]
+                  for i in range(m) for j in range(m)]
+    s = build([(quads, 0.5, 0.0)])
+    s.emission[:2] = 1.0
+    return s
+
+
+def test_links_grow_about_linearly_with_the_input_triangles():
+    """Clusters: quadrupling the input triangles multiplies links by far less than 16 (n^2)."""
+    counts = []
+    for m in (4, 8, 16):
+        _, r = run(tiled_box(m), max_level=0)
+        counts.append((r.leaves.n, r.links))
+    (n1, l1), (n2, l2), (n3, l3) = counts
+    exponent = np.log(l3 / l2) / np.log(n3 / n2)
+    print(f"links {l1:,} {l2:,} {l3:,} for {n1:,} {n2:,} {n3:,} leaves: exponent {exponent:.2f}")
+    assert l2 / l1 < 6 and l3 / l2 < 6 and exponent < 1.3
+    assert l3 < 0.01 * n3 ** 2
+
+
+def box_on_floor():
+    """A 4 x 4 floor (rho 0.5), a black unit box resting on its centre, a black emitting 1 x 1
+    square 2 above the floor facing down, beside the box (so the box casts a shadow)."""
+    floor = [[(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]]
+    x0, x1, y0, y1, h = -0.5, 0.5, -0.5, 0.5, 1.0
+    box = [[(x0, y0, h), (x1, y0, h), (x1, y1, h), (x0, y1, h)],            # top
+           [(x0, y0, 0), (x0, y1, 0), (x1, y1, 0), (x1, y0, 0)],            # bottom, on the floor
+           [(x0, y0, 0), (x1, y0, 0), (x1, y0, h), (x0, y0, h)],
+           [(x1, y1, 0), (x0, y1, 0), (x0, y1, h), (x1, y1, h)],
+           [(x0, y1, 0), (x0, y0, 0), (x0, y0, h), (x0, y1, h)],
+           [(x1, y0, 0), (x1, y1, 0), (x1, y1, h), (x1, y0, h)]]
+    lamp = [[(1.0, -0.5, 2), (1.0, 0.5, 2), (2.0, 0.5, 2), (2.0, -0.5, 2)]]
+    return build([(floor, 0.5, 0.0), (box, 0.0, 0.0), (lamp, 0.0, 1.0)]), np.array(lamp[0], float)
+
+
+def test_floor_under_a_box_stays_dark_and_the_open_floor_matches_the_closed_form():
+    scene, lamp = box_on_floor()
+    hr, r = run(scene, quality=0.01)
+    floor = np.flatnonzero(scene.object_index == 0)            # input triangles 0, 1
+    rng = np.random.default_rng(3)
+    # points well inside the box's footprint, and points of the open floor that see all the lamp
+    under = rng.uniform(-0.45, 0.45, (50, 2))
+    open_ = np.column_stack([rng.uniform(1.0, 1.9, 50), rng.uniform(-1.9, 1.9, 50)])
+    points = np.vstack([under, open_])
+    p3 = np.column_stack([points, np.zeros(len(points))])
+    tri = scene.vertices[scene.triangles[floor]]
+    t, bary = [], []
+    for p in p3:                                               # which floor triangle holds p
+        for k, (a, b, c) in zip(floor, tri):
+            m = np.linalg.solve(np.column_stack([b - a, c - a, [0, 0, 1]]), p - a)
+            if m[0] >= 0 and m[1] >= 0 and m[0] + m[1] <= 1:
+                t.append(k)
+                bary.append([1 - m[0] - m[1], m[0], m[1]])
+                break
+    B = hr.radiosity_at(np.array(t), np.array(bary))[:, 0]
+    A = r.leaves.areas
+    mean = (A * r.result.B[:, 0]).sum() / A.sum()
+    assert B[:50].max() < 1e-3 * mean
+    exact = 0.5 * np.array([point_to_polygon(p + [0, 0, 1e-9], np.array([0, 0, 1.0]), lamp) for p in p3[50:]])
+    assert np.abs(B[50:] / exact - 1).max() < 0.03
+
+
+def test_a_receiver_1_cm_behind_an_emitter_gets_rho_pi_L():
+    """A two-sided panel 1 cm under a ceiling: its back (a black emitter of its own) lights
+    the ceiling above its centre with rho x pi L x F, F the closed form (0.98 here)."""
+    L = 10.0
+    ceiling = [[(-2, -2, 2.0), (-2, 2, 2.0), (2, 2, 2.0), (2, -2, 2.0)]]       # faces down
+    front = [[(-0.5, -0.5, 1.99), (-0.5, 0.5, 1.99), (0.5, 0.5, 1.99), (0.5, -0.5, 1.99)]]
+    back = [[(-0.5, -0.5, 1.99), (0.5, -0.5, 1.99), (0.5, 0.5, 1.99), (-0.5, 0.5, 1.99)]]
+    floor = [[(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]]
+    scene = build([(ceiling, 0.6, 0.0), (front, 0.0, np.pi * L), (back, 0.0, np.pi * L), (floor, 0.0, 0.0)])
+    hr, r = run(scene, quality=0.01)
+    points = np.array([[x, y, 2.0] for x in (-0.2, 0.0, 0.2) for y in (-0.2, 0.1)])
+    tri = scene.vertices[scene.triangles[:2]]
+    t, bary = [], []
+    for p in points:
+        for k, (a, b, c) in enumerate(tri):
+            m = np.linalg.solve(np.column_stack([b - a, c - a, [0, 0, 1]]), p - a)
+            if m[0] >= -1e-12 and m[1] >= -1e-12 and m[0] + m[1] <= 1 + 1e-12:
+                t.append(k)
+                bary.append([1 - m[0] - m[1], m[0], m[1]])
+                break
+    B = hr.radiosity_at(np.array(t), np.array(bary))[:, 0]
+    F = np.array([point_to_polygon(p, np.array([0, 0, -1.0]), np.array(back[0], float)) for p in points])
+    assert F.min() > 0.95
+    np.testing.assert_allclose(B, 0.6 * np.pi * L * F, rtol=0.02)
+
+
+@pytest.fixture(scope="module")
+def cornell(addon):
+    """The bundled Cornell box's input triangles, and a direct solve on 776 uniform patches
+    with Embree form factors (4,096 rays), with each patch centre's place in its triangle."""
+    import bpy
+
+    from radtr_addon.blender.extract import extract, source_objects
+    from radtr_addon.cli import load_bundled
+    from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
+    from radtr_addon.hierarchy import subdivide
+    from radtr_addon.solvers import solve
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    load_bundled("cornell_box").build(bpy)
+    ctx = bpy.context
+    base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
+    h = subdivide(base, 0.006, 1)
+    ref = solve("direct", h.leaves, FormFactors(h.leaves, FormFactorSettings("embree", rays=4096)), tol=1e-8)
+    tri = base.vertices[base.triangles[h.source]]
+    p = h.leaves.centroids
+    e1, e2, d = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], p - tri[:, 0]
+    g = np.einsum("nij,nkj->nik", np.stack([e1, e2], 1), np.stack([e1, e2], 1))
+    uv = np.linalg.solve(g, np.einsum("nij,nj->ni", np.stack([e1, e2], 1), d)[..., None])[..., 0]
+    bary = np.column_stack([1 - uv.sum(axis=1), uv])
+    return base, h, ref, bary
+
+
+def test_cornell_box_agrees_with_a_uniform_direct_solve(cornell):
+    """At Quality 0.03 the reflected light of every object is within 7% of the direct solve's
+    (whose own patch size and ray noise are part of the difference), the power-weighted
+    error below 8%, and a finer Quality gets closer."""
+    base, h, ref, bary = cornell
+    leaves = h.leaves
+    A = leaves.areas[:, None]
+    refl = ref.B - leaves.emission
+    errors = []
+    for quality in (0.1, 0.03):
+        hr, r = run(base, quality=quality)
+        B = hr.radiosity_at(h.source, bary) - leaves.emission
+        errors.append((A * np.abs(B - refl)).sum(axis=0).max() / (A * refl).sum(axis=0).max())
+    for k in np.unique(leaves.object_index):                   # at Quality 0.03
+        m = leaves.object_index == k
+        mean = (A[m] * B[m]).sum(axis=0) / A[m].sum()
+        assert np.abs(mean / ((A[m] * refl[m]).sum(axis=0) / A[m].sum()) - 1).max() < 0.07
+    print(f"power-weighted error of reflected light: Quality 0.1 {errors[0]:.3f}, 0.03 {errors[1]:.3f}")
+    assert errors[1] < 0.08 and errors[1] < errors[0]
