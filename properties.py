@@ -48,7 +48,13 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                ("jacobi", "Jacobi", "Gathering sweeps, every patch from the last sweep's light"),
                ("gauss_seidel", "Gauss-Seidel", "Gathering sweeps using light updated in the same sweep"),
                ("direct", "Direct", "Sparse/dense LU of the whole system: exact, for small scenes"),
-               ("user", "User", "Your own Python function: module:function or file.py:function")])
+               ("user", "User", "Your own Python function: module:function or file.py:function"),
+               ("hierarchical", "Hierarchical", "Adaptive patches and links: refined only where light changes "
+                "(contacts, shadows, near fields); Quality sets how far")])
+    quality: FloatProperty(
+        name="Quality", default=_D.quality, min=1e-4, max=1.0, precision=4,
+        description="Hierarchical: error allowed per link, as a fraction of the scene's mean emitted exitance "
+                    "(smaller: more patches and links, slower, closer)")
     user_solver: StringProperty(
         name="Function", default=_D.user_solver,
         description="module:function or path/to/file.py:function called as f(F=, E=, rho=, areas=) -> B")
@@ -130,7 +136,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         return Settings(max_area=self.max_area, levels=self.levels,
                         method=self.method, resolution=self.resolution - self.resolution % 2,
                         rotate=self.rotate, split=self.split, split_level=self.split_level, rays=self.rays,
-                        solver=self.solver, user_solver=self.user_solver, tolerance=self.tolerance,
+                        solver=self.solver, user_solver=self.user_solver, quality=self.quality,
+                        tolerance=self.tolerance,
                         max_iterations=self.max_iterations,
                         precision=self.precision, ambient=self.ambient, gather_rays=self.gather_rays,
                         max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode,

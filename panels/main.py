@@ -25,21 +25,14 @@ class RADTR_PT_main(bpy.types.Panel):
             col.prop(s, "ambient")
         elif s.solver == "user":
             col.prop(s, "user_solver")
-        col.prop(s, "precision")
+        if s.solver == "hierarchical":
+            col.prop(s, "quality")
+        else:
+            col.prop(s, "precision")
         col.prop(s, "tolerance")
         col.prop(s, "max_iterations")
-        col.label(text="Form Factors")
-        col.prop(s, "method")
-        if s.method == "embree":
-            col.prop(s, "rays")
-        else:
-            col.prop(s, "resolution")
-        if s.method == "hemicube":
-            col.prop(s, "rotate")
-        elif s.method == "paraboloid":
-            col.prop(s, "split")
-            if s.split == "uniform":
-                col.prop(s, "split_level")
+        if s.solver != "hierarchical":
+            self.draw_form_factors(col, s)
         col.prop(s, "gather_rays")
         col.prop(s, "sky")
         if s.sky != "none":
@@ -80,3 +73,18 @@ class RADTR_PT_main(bpy.types.Panel):
         col.operator("radtr.load_vector", icon="FILE_FOLDER")
         col.operator("radtr.toggle_emission", icon="RESTRICT_SELECT_OFF")
         col.operator("radtr.clear", icon="TRASH")
+
+    @staticmethod
+    def draw_form_factors(col, s):
+        col.label(text="Form Factors")
+        col.prop(s, "method")
+        if s.method == "embree":
+            col.prop(s, "rays")
+        else:
+            col.prop(s, "resolution")
+        if s.method == "hemicube":
+            col.prop(s, "rotate")
+        elif s.method == "paraboloid":
+            col.prop(s, "split")
+            if s.split == "uniform":
+                col.prop(s, "split_level")

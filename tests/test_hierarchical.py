@@ -202,3 +202,29 @@ def test_cornell_box_agrees_with_a_uniform_direct_solve(cornell):
         assert np.abs(mean / ((A[m] * refl[m]).sum(axis=0) / A[m].sum()) - 1).max() < 0.07
     print(f"power-weighted error of reflected light: Quality 0.1 {errors[0]:.3f}, 0.03 {errors[1]:.3f}")
     assert errors[1] < 0.08 and errors[1] < errors[0]
+
+
+def test_solve_operator_writes_adaptive_leaves(addon, blend):
+    """Through ``bpy.ops.radtr.solve``: a face per leaf in the result meshes, finite vertex
+    colours, and Quality 0.03 makes more leaves than 0.1."""
+    from radtr_addon.cli import load_bundled
+
+    bpy = blend
+    load_bundled("cornell_box").build(bpy)
+    s = bpy.context.scene.radtr
+    s.solver, s.quality = "hierarchical", 0.1
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    running = addon.operators.solve.running
+    job = running["last"]
+    coarse = job.leaves.n
+    res = job.adaptive
+    assert res.leaves.n == coarse and res.links > 0
+    meshes = [o.data for o in bpy.data.collections["RadTR"].objects]
+    assert sum(len(m.polygons) for m in meshes) == coarse
+    assert {o.name.removesuffix("_radtr") for o in bpy.data.collections["RadTR"].objects} >= {"floor", "tall_block"}
+    colours = np.concatenate([np.array([c.color for c in m.color_attributes["radtr_radiosity"].data])
+                              for m in meshes])
+    assert np.isfinite(colours).all() and colours[:, :3].max() > 0
+    s.quality = 0.03
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    assert running["last"].leaves.n > coarse

@@ -167,6 +167,9 @@ def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_
 
     if not job.objects:
         raise SceneError("solve the scene first: the flashlight relights its result meshes")
+    if job.hierarchy is None:
+        raise SceneError("the flashlight's low-rank factors need the uniform patch hierarchy: "
+                         "solve with a solver other than Hierarchical first")
     if not 0 <= level <= job.hierarchy.levels:
         raise SettingsError(f"low-rank level {level} is not a level of the hierarchy: 0..{job.hierarchy.levels}; "
                             f"lower the level or solve with more Levels")

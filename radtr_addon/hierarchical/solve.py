@@ -163,6 +163,15 @@ class HierarchicalRadiosity:
     def phase(self) -> str:
         return f"hierarchical round {len(self.rounds) + 1}, {len(self.links):,} links"
 
+    def energy(self) -> dict[str, float]:
+        """Fractions of the emitted power absorbed, escaped (left and received by no front
+        face), blocked (0: counted in escaped) and unshot (the residual), for the live readout."""
+        if not hasattr(self, "B"):
+            return {"absorbed": 0.0, "escaped": 0.0, "blocked": 0.0, "unshot": 1.0}
+        r = self.result().result
+        e = max(float(r.emitted.max()), 1e-300)
+        return {k: float(getattr(r, k).max()) / e for k in ("absorbed", "escaped", "blocked", "unshot")}
+
     @property
     def seconds(self) -> float:
         return time.perf_counter() - self._t_start
