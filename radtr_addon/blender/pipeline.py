@@ -211,14 +211,15 @@ class SolveJob:
         self.leaves = base
 
     def _with_emitter_backs(self, base):
-        """``base`` plus, for two-sided emitting materials, each emitting triangle's back as a
-        black emitter of its own (solved, not shown), and the mask of the triangles shown."""
+        """``base`` plus, for two-sided emitting materials, each emitting triangle's back as an
+        emitter of its own with the material's reflectance (solved, not shown: a lamp's back
+        and a ceiling 1 cm above it pass light to and fro), and the mask of the triangles shown."""
         two = np.isin(base.material_index, list(self.extraction.two_sided))
         ids = np.flatnonzero(two & (base.emission.max(axis=1) > 0))
         if not len(ids):
             return base, None
         tris = np.concatenate([base.triangles, base.triangles[ids][:, ::-1]])
-        scene = PatchScene(base.vertices, tris, np.concatenate([base.rho, np.zeros((len(ids), 3))]),
+        scene = PatchScene(base.vertices, tris, np.concatenate([base.rho, base.rho[ids]]),
                            np.concatenate([base.emission, base.emission[ids]]),
                            np.concatenate([base.object_index, base.object_index[ids]]),
                            np.concatenate([base.material_index, base.material_index[ids]]),

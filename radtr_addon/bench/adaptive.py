@@ -1,0 +1,163 @@
+"""``bench adaptive``: uniform patches against hierarchical radiosity, both against Cycles.
+
+For each bundled scene (``cornell_box``, ``furnished_room`` and, without ``--quick``, the
+``atrium``) and each configuration (uniform Embree patches with Jacobi at two patch counts;
+hierarchical at several Quality values), a solve as a user runs it (``pipeline.solve``,
+result meshes written), then a Cycles bake at the vertices of those result meshes
+(``REFERENCE_SPP`` samples; emitters left out) as the reference. Table ``adaptive``:
+leaves, links (and n^2, the uniform matrix), seconds by stage, the per-vertex RMS relative
+error of reflected radiance (what a user sees: the written ``radtr_radiosity`` colours / pi),
+the worst object's mean error, and the samples and seconds Cycles needs to reach the same
+error on the same vertices (log-log fit of bakes at ``CURVE_SPP``) with the ratio. The plot
+``out/adaptive.png``: error against seconds per scene, uniform, hierarchical and Cycles.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .solvers import crossing, cycles_bakes, rel_rms
+
+REFERENCE_SPP = 1024
+CURVE_SPP = (16, 64, 256)
+QUALITIES = (0.1, 0.03, 0.01)
+UNIFORM_PATCHES = (2000, 8000)
+
+
+class ResultVertices:
+    """The written vertex colours of a job's result meshes, emitters left out, in one order;
+    ``parts`` is what ``solvers.cycles_bakes`` bakes."""
+
+    def __init__(self, job):
+        from ..reconstruct import mesh_part
+
+        leaves, base = job.leaves, job.extraction.scene
+        emits = {k for k in range(len(base.object_names)) if base.emission[base.object_index == k].max() > 0}
+        self.parts, self.objects = [], []
+        for k, obj in enumerate(job.extraction.objects):
+            sel = np.flatnonzero(leaves.object_index == k)
+            if k not in emits and len(sel):
+                self.parts.append((obj.name, mesh_part(leaves, sel)))
+
+    def radiance(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reflected radiance (v, 3) from the written colours, and each vertex's part index."""
+        import bpy
+
+        values, which = [], []
+        for k, (name, part) in enumerate(self.parts):
+            mesh = bpy.data.objects[f"{name}_radtr"].data
+            col = np.empty(len(mesh.vertices) * 4, dtype=np.float32)
+            mesh.color_attributes["radtr_radiosity"].data.foreach_get("color", col)
+            values.append(col.reshape(-1, 4)[:, :3])
+            which.append(np.full(len(mesh.vertices), k))
+        return np.concatenate(values).astype(np.float64) / np.pi, np.concatenate(which)
+
+
+def worst_object(values, reference, which) -> float:
+    """Largest relative error of an object's mean reflected radiance (all channels)."""
+    worst = 0.0
+    for k in np.unique(which):
+        m = which == k
+        ref = reference[m].mean(axis=0)
+        worst = max(worst, float(np.max(np.abs(values[m].mean(axis=0) - ref) / np.maximum(ref, 1e-12))))
+    return worst
+
+
+def configurations(quick: bool) -> list[tuple[str, dict]]:
+    uniform = [(f"uniform {n:,}", {"solver": "jacobi", "method": "embree", "rays": 1024, "max_area": 0.0,
+                                   "tolerance": 1e-4, "patches": n}) for n in UNIFORM_PATCHES[:1 if quick else 2]]
+    hier = [(f"hierarchical {q:g}", {"solver": "hierarchical", "quality": q, "tolerance": 1e-4})
+            for q in (QUALITIES[:2] if quick else QUALITIES)]
+    return uniform + hier
+
+
+def solve_scene(scene: str, label: str, options: dict):
+    """Open a bundled scene fresh and solve it as the CLI does; returns the job and its seconds."""
+    import bpy
+
+    from ..blender.extract import extract, source_objects
+    from ..blender.pipeline import Settings, auto_max_area, solve
+    from ..cli import open_scene
+
+    open_scene(scene)
+    options = dict(options)
+    patches = options.pop("patches", None)
+    if patches:
+        ctx = bpy.context
+        base = extract(ctx.evaluated_depsgraph_get(), source_objects(ctx.scene, ctx.view_layer)).scene
+        options["max_area"] = auto_max_area(base.areas.sum(), 1, patches)
+    t0 = time.perf_counter()
+    job = solve(bpy.context, Settings(**options), log=lambda *_: None)
+    return job, time.perf_counter() - t0
+
+
+def scene_rows(scene: str, quick: bool) -> tuple[list[dict], list[dict]]:
+    rows, curves = [], []
+    spp_ref = 256 if quick else REFERENCE_SPP
+    curve_spp = CURVE_SPP[:2]
+    for label, options in configurations(quick):
+        job, seconds = solve_scene(scene, label, options)
+        vertices = ResultVertices(job)
+        values, which = vertices.radiance()
+        bakes = cycles_bakes(job, vertices, (*curve_spp, spp_ref))
+        reference = bakes.pop(spp_ref)[0]
+        error = rel_rms(values, reference)
+        cy_err = [rel_rms(bakes[s][0], reference) for s in curve_spp]
+        cy_s = [bakes[s][1] for s in curve_spp]
+        spp, cycles_s = crossing(list(curve_spp), cy_err, cy_s, error)
+        n = job.leaves.n
+        links = job.adaptive.links if options["solver"] == "hierarchical" else n * n
+        stages = {k: round(v, 2) for k, v in job.stats.seconds.items() if v >= 0.005}
+        rows.append({"scene": scene, "config": label, "leaves": n, "links": links, "n^2": n * n,
+                     "seconds": round(seconds, 2), "error": round(error, 4),
+                     "worst_object": round(worst_object(values, reference, which), 4),
+                     "cycles_spp": int(round(spp)), "cycles_s": round(cycles_s, 2),
+                     "ratio": round(cycles_s / seconds, 2), "stages": stages})
+        curves.append({"scene": scene, "config": label, "seconds": seconds, "error": error,
+                       "cycles": list(zip(cy_s, cy_err))})
+        print(f"  {scene} {label}: {n:,} leaves, {seconds:.1f} s, error {error:.3f} "
+              f"(Cycles {spp:.0f} spp, {cycles_s:.1f} s)", flush=True)
+    return rows, curves
+
+
+def plot(curves: list[dict], path: Path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(c["scene"] for c in curves))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 4.8), squeeze=False)
+    for ax, scene in zip(axes[0], scenes):
+        mine = [c for c in curves if c["scene"] == scene]
+        for kind, marker in (("uniform", "s-"), ("hierarchical", "o-")):
+            pts = [(c["seconds"], c["error"], c["config"]) for c in mine if c["config"].startswith(kind)]
+            if pts:
+                ax.loglog([p[0] for p in pts], [p[1] for p in pts], marker, label=f"RadTR {kind}")
+                for t, e, name in pts:
+                    ax.annotate(name.split()[-1], (t, e), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        cy = mine[-1]["cycles"]
+        ax.loglog([c[0] for c in cy], [c[1] for c in cy], "k^--", label="Cycles bake (last mesh)")
+        ax.set(title=scene, xlabel="seconds", ylabel="per-vertex RMS error vs Cycles reference")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(quick: bool = False, out_dir: str = "out") -> dict[str, list[dict]]:
+    scenes = ("cornell_box", "furnished_room") if quick else ("cornell_box", "furnished_room", "atrium")
+    rows, curves = [], []
+    for scene in scenes:
+        r, c = scene_rows(scene, quick)
+        rows += r
+        curves += c
+    path = Path(out_dir) / "adaptive.png"
+    plot(curves, path)
+    print(f"plot: {path}")
+    stages = [{"scene": r["scene"], "config": r["config"], **r.pop("stages")} for r in rows]
+    return {"adaptive": rows, "stages": stages}
