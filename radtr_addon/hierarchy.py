@@ -17,11 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SceneError
+from .errors import SceneError, SettingsError
 from .scene import PatchScene, triangle_geometry
 
 #: Subdivisions that would produce more leaf patches than this are refused up front.
 MAX_PATCHES = 4_000_000
+#: Peak bytes per leaf of ``subdivide`` itself (vertices, triangles, levels, the leaf scene;
+#: measured 574 at 786,432 leaves), the least any solve of the leaves needs.
+SUBDIVIDE_BYTES_PER_PATCH = 640
 
 
 @dataclass
@@ -48,10 +51,28 @@ def estimate_leaf_count(areas: np.ndarray, max_area: float, levels: int) -> int:
     return int(np.sum(4.0 ** np.maximum(splits, 0)))
 
 
-def subdivide(scene: PatchScene, max_area: float, levels: int, progress=None) -> Hierarchy:
+def check_patch_memory(patches: int, max_area: float, levels: int, budget_bytes: int,
+                       bytes_per_patch: int = SUBDIVIDE_BYTES_PER_PATCH, what: str = "subdividing"):
+    """Raise SettingsError when ``patches`` leaves at ``bytes_per_patch`` (the chosen solve's
+    work arrays per patch: ``solvers.patch_bytes``) need more than ``budget_bytes``."""
+    need = patches * max(bytes_per_patch, SUBDIVIDE_BYTES_PER_PATCH)
+    if need > budget_bytes:
+        raise SettingsError(
+            f"subdividing to max area {max_area:g} in {levels} levels would make {patches:,} patches, and "
+            f"{what} of them needs {need / 2**30:,.2f} GiB ({need // patches:,} bytes a patch), over the "
+            f"memory budget of {budget_bytes / 2**20:,.0f} MB: raise the budget (Memory Budget, --cache-mb) "
+            f"to {-(-need // 2**20):,} MB, or raise the max area or lower the levels")
+
+
+def subdivide(scene: PatchScene, max_area: float, levels: int, progress=None, *,
+              budget_bytes: int | None = None, bytes_per_patch: int = SUBDIVIDE_BYTES_PER_PATCH,
+              what: str = "subdividing") -> Hierarchy:
     """Build the hierarchy of ``scene`` (see module docstring).
 
-    ``progress(done, total)`` is called once per round.
+    ``progress(done, total)`` is called once per round. Before any work the leaf count is
+    estimated (``estimate_leaf_count``) and refused above ``MAX_PATCHES``, or, given
+    ``budget_bytes``, when the leaves at ``bytes_per_patch`` would not fit in it
+    (``check_patch_memory``; ``what`` names the work in the message).
     """
     if levels < 0:
         raise SceneError(f"levels must be 0 or more, got {levels}")
@@ -62,6 +83,8 @@ def subdivide(scene: PatchScene, max_area: float, levels: int, progress=None) ->
         raise SceneError(
             f"subdividing to max area {max_area:g} in {levels} levels would make {expected:,} patches "
             f"(limit {MAX_PATCHES:,}): raise the max area or lower the levels")
+    if budget_bytes is not None:
+        check_patch_memory(expected, max_area, levels, budget_bytes, bytes_per_patch, what)
     vertices = [scene.vertices]
     n_vertices = len(scene.vertices)
     edge_mid: dict[int, int] = {}

@@ -394,3 +394,56 @@ def test_white_furnace_is_right_at_any_emission_and_any_size(emission, size):
     assert r.converged and r.escaped.max() == 0
     assert np.average(r.B[:, 0], weights=areas) / emission == pytest.approx(2.0, rel=2e-4)
     np.testing.assert_allclose(r.B / emission, unit.B, rtol=1e-6)
+
+
+# -- huge work refused before it starts ----------------------------------------------------------
+
+def test_subdivision_over_the_memory_budget_is_refused_with_the_size():
+    """3,145,728 patches (under the 4 M cap) for a shooting solve: refused before any work."""
+    from geometry import cube
+
+    from radtr_addon.hierarchy import MAX_PATCHES, check_patch_memory, estimate_leaf_count, subdivide
+    from radtr_addon.solvers import patch_bytes
+
+    c = cube()
+    max_area = 0.5 / 4 ** 9
+    assert estimate_leaf_count(c.areas, max_area, 1) == 12 * 4 ** 9 < MAX_PATCHES
+    with pytest.raises(SettingsError, match=r"would make 3,145,728 patches, and a shooting solve of them needs "
+                                            r"6.00 GiB \(2,048 bytes a patch\), over the memory budget of 2,048 MB: "
+                                            r"raise the budget \(Memory Budget, --cache-mb\) to 6,144 MB"):
+        subdivide(c, max_area, 1, budget_bytes=2048 << 20, bytes_per_patch=patch_bytes("shooting"),
+                  what="a shooting solve")
+    with pytest.raises(SettingsError, match=r"a direct solve of them needs 15.00 GiB \(5,120 bytes a patch\)"):
+        check_patch_memory(12 * 4 ** 9, max_area, 1, 2048 << 20, patch_bytes("direct"), "a direct solve")
+    check_patch_memory(12 * 4 ** 9, max_area, 1, 6144 << 20, patch_bytes("shooting"))   # raised: accepted
+    assert subdivide(c, 0.5 / 4 ** 3, 1, budget_bytes=2048 << 20).leaves.n == 12 * 4 ** 3
+
+
+def sparse_rows(n: int, per_row: int):
+    """A row cache over n patches whose rows each see ``per_row`` others (computed on demand)."""
+    from radtr_addon.formfactors.rows import Row, RowCache
+
+    def compute(ids):
+        rng = np.random.default_rng(0)
+        return [Row(np.sort(rng.choice(n, per_row, replace=False)), np.full(per_row, 0.5 / per_row), 0.5, 0.0)
+                for _ in ids]
+    return RowCache(compute, 64 << 30)
+
+
+def test_direct_solve_of_many_patches_is_refused_before_assembling():
+    from geometry import cube
+
+    from radtr_addon.scene import PatchScene
+    from radtr_addon.solvers import make_solver
+
+    n = 20_000
+    c = cube()
+    scene = PatchScene(np.tile(c.vertices[c.triangles[0]], (n, 1)), np.arange(3 * n).reshape(n, 3), 0.5, 1.0, 0, 0)
+    rows = sparse_rows(n, 20)
+    with pytest.raises(SceneError, match=r"the direct solve of 20,000 patches would take about [\d.]+ (min|h) "
+                                         r"\(assembling 20,000 form-factor rows [\d.]+ s, LU of about 2.3e\+08 "
+                                         r"non-zeros a channel [\d.]+ (min|h)\), over the limit of 10.0 min: use an "
+                                         r"iterative solver \(shooting, jacobi or gauss_seidel\), or fewer patches"):
+        make_solver("direct", scene, rows)
+    assert rows.computed == 64                  # only the size sample: nothing assembled
+    make_solver("shooting", scene, rows)        # the iterative solvers take it

@@ -86,8 +86,12 @@ class UserSolver(DirectSolver):
         self.function = load_user_solver(spec)
         super().__init__(scene, rows, **kw)
 
-    def _extra_bytes(self, n: int, dense: bool) -> int:
+    def _extra_bytes(self, n: int, dense: bool, nnz: int) -> int:
         return 0                                 # the user's function brings its own memory
+
+    def _estimate(self, n: int, nnz: int, rows) -> tuple[float, str]:
+        seconds = rows.seconds / max(rows.computed, 1) * (n - len(rows.held))
+        return seconds, f"assembling {n:,} form-factor rows"
 
     def _advance(self, t0: float):
         super()._advance(t0)
