@@ -447,3 +447,31 @@ def test_direct_solve_of_many_patches_is_refused_before_assembling():
         make_solver("direct", scene, rows)
     assert rows.computed == 64                  # only the size sample: nothing assembled
     make_solver("shooting", scene, rows)        # the iterative solvers take it
+
+
+# -- watch mode ----------------------------------------------------------------------------------
+
+def test_watch_skips_a_file_cut_inside_its_last_number(cornell, tmp_path):
+    from radtr_addon.blender.flashlight import LiveMeshes
+    from radtr_addon.blender.sequence import watch
+    from radtr_addon.exchange import load_vector
+
+    job = solve(cornell.context, Settings(solver="direct", **FAST), log=quiet)
+    E = job.leaves.emission
+    target = tmp_path / "live_es.dat"
+    np.savetxt(target, 2 * E + 0.123456, fmt="%.6f")
+    full = target.read_text()
+    cut = full[:-4]                                      # inside the last number: right row count
+    assert load_vector(write(tmp_path / "cut.dat", cut), job.leaves.n).shape == E.shape
+    target.write_text(cut)
+    before = [b.copy() for pair in LiveMeshes(job.objects, job.leaves).snapshot() for b in pair]
+    logs = []
+    script = iter([quiet, quiet, quiet, lambda: target.write_text(full), quiet, quiet])
+    shown = watch(job, target, tmp_path / "w", polls=6, sleep=lambda _: next(script)(), log=logs.append)
+    assert [p.name for p in shown] == ["watch_0000.png"]                # only the complete version
+    skipped = [line for line in logs if "no line end" in line]
+    assert len(skipped) == 3 and skipped[0] == (               # tried again every poll
+        f"RadTR warning: {target}: its last line has no line end (cut inside its last number?); skipped, "
+        f"waiting for a complete file (tried again in 0.5 s)")
+    after = [b.copy() for pair in LiveMeshes(job.objects, job.leaves).snapshot() for b in pair]
+    assert all(np.array_equal(a, b) for a, b in zip(after, before))   # colours restored

@@ -5,8 +5,10 @@ settings, hence the same patches: ``exchange``), and is checked by ``exchange.lo
 Each is solved with the job's solver and form factors (rows computed once, then cached), shown
 in the result meshes and rendered to a PNG; the meshes' colours are restored afterwards.
 ``watch`` reloads a file whenever another program rewrites it: a new version is read only when
-its size and time stamp have stayed the same for one polling interval and it parses whole
-with the right length, so a half-written file is never loaded.
+its size and time stamp have stayed the same for one polling interval, a text file ends with
+a line end (a writer stalled inside its last number leaves the right row count), the file did
+not change while it was read, and it parses whole as the expected count of finite numbers;
+otherwise it is skipped with a warning and tried again the next interval.
 """
 from __future__ import annotations
 
@@ -53,6 +55,24 @@ def render_sequence(job, prefix: str, first: int, last: int, out_dir, suffix: st
         meshes.restore(saved)
 
 
+def read_complete(path: Path, n: int) -> np.ndarray:
+    """E (n, 3) from ``path`` if it is complete (see the module docstring), else InputFileError."""
+    def signature():
+        st = path.stat()
+        return st.st_mtime_ns, st.st_size
+
+    before = signature()
+    if path.suffix not in (".npz", ".mat"):
+        with open(path, "rb") as f:
+            f.seek(max(before[1] - 1, 0))
+            if f.read(1) not in (b"\n", b"\r"):
+                raise InputFileError(f"{path}: its last line has no line end (cut inside its last number?)")
+    E = load_vector(path, n)
+    if signature() != before:
+        raise InputFileError(f"{path}: changed while it was read")
+    return E
+
+
 def watch(job, path, out_dir, polls: int, interval: float = 0.5, sleep=time.sleep, log=print) -> list[Path]:
     """Poll ``path`` ``polls`` times; each complete new version gives ``watch_NNNN.png``."""
     path, out_dir = Path(path), Path(out_dir)
@@ -69,9 +89,9 @@ def watch(job, path, out_dir, polls: int, interval: float = 0.5, sleep=time.slee
                 signature = None
             if signature is not None and signature != seen and signature == previous:
                 try:
-                    E = load_vector(path, job.leaves.n)
-                except InputFileError as exc:
-                    log(f"RadTR: {exc}; waiting for a complete file")
+                    E = read_complete(path, job.leaves.n)
+                except (InputFileError, OSError) as exc:
+                    log(f"RadTR warning: {exc}; skipped, waiting for a complete file (tried again in {interval:g} s)")
                 else:
                     shown.append(_show(job, meshes, E, out_dir / f"watch_{len(shown):04d}.png"))
                     log(f"RadTR: {path.name} changed; rendered {shown[-1]}")
