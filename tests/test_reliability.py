@@ -475,3 +475,62 @@ def test_watch_skips_a_file_cut_inside_its_last_number(cornell, tmp_path):
         f"waiting for a complete file (tried again in 0.5 s)")
     after = [b.copy() for pair in LiveMeshes(job.objects, job.leaves).snapshot() for b in pair]
     assert all(np.array_equal(a, b) for a, b in zip(after, before))   # colours restored
+
+
+# -- coincident back-to-back faces ---------------------------------------------------------------
+
+def doubled_box(other_diagonal: bool = False):
+    """The unit cube facing in (object 'room') with every wall doubled by a face facing out
+    ('shell'): the same corners, or the quads split along their other diagonal."""
+    from geometry import cube
+
+    from radtr_addon.scene import PatchScene
+
+    c = cube()
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    if other_diagonal:
+        out = [[d, b, a] for a, b, _, d in quads] + [[d, c_, b] for _, b, c_, d in quads]
+    else:
+        out = c.triangles[:, ::-1]
+    return PatchScene(c.vertices, np.concatenate([c.triangles, out]), 0.5, 1.0, [0] * 12 + [1] * 12, 0,
+                      ["room", "shell"], ["wall"])
+
+
+@pytest.mark.parametrize("other_diagonal, pairs", [(False, 192), (True, 384)])
+def test_coincident_back_to_back_faces_are_named_when_form_factors_are_set_up(other_diagonal, pairs):
+    from radtr_addon.formfactors.coincident import back_to_back_pairs
+    from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
+    from radtr_addon.hierarchy import subdivide
+
+    leaves = subdivide(doubled_box(other_diagonal), 0.05, 1).leaves
+    found = back_to_back_pairs(leaves.vertices, leaves.triangles, leaves.normals)
+    assert len(found) == pairs and set(leaves.object_index[found].ravel()) == {0, 1}
+    assert np.all(leaves.object_index[found[:, 0]] != leaves.object_index[found[:, 1]])
+    ff = FormFactors(leaves, FormFactorSettings("embree", rays=16))
+    assert ff.warnings == [f"{pairs} pairs of coincident back-to-back faces (two faces at the same place facing away "
+                           f"from each other: a wall modelled as two faces, or an object resting on another) in "
+                           f"'room' and 'shell': each face is lit from its front only; give the wall a thickness, "
+                           f"or make it one face, if light should pass there"]
+    single = subdivide(doubled_box().subset(np.arange(24) < 12), 0.05, 1).leaves
+    assert FormFactors(single, FormFactorSettings("embree", rays=16)).warnings == []
+
+
+@pytest.mark.parametrize("method, rel", [("hemicube", 1e-9), ("paraboloid", 6e-3), ("embree", 1e-9)])
+def test_white_furnace_with_doubled_walls_is_right_with_every_method(gpu, method, rel):
+    """Each inward face sees only inward faces (row sum 1) and the shooting solve gives the
+    furnace's B = E / (1 - rho) = 2; the GPU methods used to see the outward twins' backs."""
+    from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
+    from radtr_addon.hierarchy import subdivide
+    from radtr_addon.solvers import solve as solve_scene
+
+    leaves = subdivide(doubled_box(), 0.02, 1).leaves
+    room = leaves.object_index == 0
+    leaves.emission[~room] = 0.0
+    ff = FormFactors(leaves, FormFactorSettings(method, resolution=64, rays=64), fallback=False)
+    rows = ff.rows(np.flatnonzero(room))
+    assert np.mean([r.values[room[r.indices]].sum() for r in rows]) == pytest.approx(1.0, rel=rel)
+    blocked = [r.blocked for r in rows]                      # 0.98 (hemicube), 0.77 (paraboloid) before
+    assert np.mean(blocked) < 1e-3 and max(blocked) < 1e-2
+    r = solve_scene("shooting", leaves, ff, tol=1e-4)
+    B = np.average(r.B[room, 0], weights=leaves.areas[room])
+    assert B == pytest.approx(2.0, rel=2 * rel / 0.5 + 1e-4)

@@ -123,8 +123,7 @@ class HemicubeRenderer(TiledRenderer):
 
         self._ensure_gpu_objects()
         tangents, bitangents = self.frames(ids)
-        self._shader.bind()
-        self._shader.uniform_float("blocked", self.blocked_id)
+        self.bind_ids(self._shader)
         for k, i in enumerate(ids):
             x0, y0 = origins[k]
             for x, y, w, h, m in self._views(int(i), tangents[k], bitangents[k]):

@@ -2,13 +2,15 @@
 
 ``FormFactorSettings`` names the method and its knobs; ``FormFactors`` builds the method,
 falls back from a GPU method to Embree rays when no GPU context can be had (with a
-warning), and is the ``RowCache`` of its rows within a byte budget.
+warning), warns about coincident back-to-back faces (``coincident``), and is the
+``RowCache`` of its rows within a byte budget.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from ..errors import GPUUnavailable, SettingsError
+from .coincident import back_to_back_warning
 from .rows import RowCache
 
 METHODS = ("hemicube", "paraboloid", "embree")
@@ -87,3 +89,6 @@ class FormFactors(RowCache):
                 self.settings = FormFactorSettings(**{**vars(self.settings), "method": "embree"})
         self.method = make_method(scene, self.settings)
         super().__init__(self.method.rows, cache_bytes)
+        coincident = back_to_back_warning(scene)
+        if coincident:
+            self.warnings.append(coincident)

@@ -107,6 +107,11 @@ class ParaboloidRenderer(TiledRenderer):
     and ``max_split`` steer ``adaptive``.
     """
 
+    #: Depth is linear in distance over near..far (2.5 diagonals): 2^-15 is 7.6e-5 of the
+    #: diagonal, under the eye's lift (1e-4); depth interpolated over thin grid triangles
+    #: differs between a triangle and its reversed twin by up to about 2^-18.
+    back_face_bias = 2.0 ** -15
+
     def __init__(self, scene, resolution: int = 256, split: str = "adaptive", split_level: int = 4,
                  split_tolerance: float = DEFAULT_SPLIT_TOLERANCE, max_split: int = 32):
         if split not in SPLIT_MODES:
@@ -225,8 +230,7 @@ class ParaboloidRenderer(TiledRenderer):
         order_tex = frame_texture(order)
         t, b = tangent_frames(self.scene.normals[ids])
         sh = self._shader
-        sh.bind()
-        sh.uniform_float("blocked", self.blocked_id)
+        self.bind_ids(sh)
         sh.uniform_sampler("corners", self._corners)
         sh.uniform_sampler("order", order_tex)
         sh.uniform_float("near", self.near)
