@@ -75,6 +75,17 @@ def tiled_box(m):
     return s
 
 
+def test_white_furnace_of_tiled_faces_at_the_default_quality():
+    """Faces made of several input triangles (cluster links between tiles): within 4% RMS,
+    and what the closed box loses or gains within 5% of the emitted power."""
+    s = tiled_box(2)
+    s.emission[:] = 1.0
+    _, r = run(s, quality=0.03)
+    B, A = r.result.B[:, 0], r.leaves.areas
+    assert np.sqrt((A * (B / 2.0 - 1) ** 2).sum() / A.sum()) < 0.04
+    assert abs(r.result.escaped[0]) < 0.05 * r.result.emitted[0]
+
+
 def test_links_grow_about_linearly_with_the_input_triangles():
     """Clusters: quadrupling the input triangles multiplies links by far less than 16 (n^2)."""
     counts = []
