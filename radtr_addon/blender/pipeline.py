@@ -80,7 +80,7 @@ class Settings:
                 ("resolution", s.resolution, s.resolution >= 2, "at least 2"),
                 ("solver", s.solver, s.solver in (*SOLVERS, "user", "hierarchical"),
                  f"one of {', '.join(SOLVERS)}, user or hierarchical"),
-                ("quality", s.quality, 0 < s.quality < np.inf, "above 0 (smaller: finer, slower)"),
+                ("quality", s.quality, 0 < s.quality < np.inf, "a finite number above 0 (smaller: finer, slower)"),
                 ("tolerance", s.tolerance, 0 <= s.tolerance < np.inf, "0 or more"),
                 ("iterations", s.max_iterations, s.max_iterations >= 1, "at least 1"),
                 ("precision", s.precision, s.precision in ("float32", "float64"), "float32 or float64"),
