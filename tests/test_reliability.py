@@ -534,3 +534,34 @@ def test_white_furnace_with_doubled_walls_is_right_with_every_method(gpu, method
     r = solve_scene("shooting", leaves, ff, tol=1e-4)
     B = np.average(r.B[room, 0], weights=leaves.areas[room])
     assert B == pytest.approx(2.0, rel=2 * rel / 0.5 + 1e-4)
+
+
+# -- a user solver that never returns --------------------------------------------------------------
+
+def test_user_solver_that_never_returns_can_be_cancelled(cornell, tmp_path):
+    """Each step hands control back while the function runs (the panel's Esc drops the job,
+    Ctrl-C ends the CLI); the scene is unchanged."""
+    import time
+
+    (tmp_path / "stuck.py").write_text("import threading\ngate = threading.Event()\n"
+                                       "def f(E, **kw):\n    gate.wait()\n    return E\n")
+    bpy = cornell
+    before = state(bpy)
+    ctx = bpy.context
+    spec = f"{tmp_path / 'stuck.py'}:f"
+    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer,
+                   Settings(solver="user", user_solver=spec, **FAST), log=quiet)
+    solver = job.solver
+    t0 = time.perf_counter()
+    while solver._worker is None:
+        solver.step(1)                                     # assembling
+    for _ in range(5):
+        t1 = time.perf_counter()
+        assert job.advance(0.05) is False                  # the modal operator's tick returns ...
+        assert time.perf_counter() - t1 < 0.5              # ... at once, though the function does not
+    assert time.perf_counter() - t0 < 30
+    assert re.fullmatch(rf"user solver '{re.escape(spec)}' running for \d+ s", solver.phase)
+    del job                                                # cancel: drop the job
+    assert state(bpy) == before
+    solver.function.__globals__["gate"].set()              # let the abandoned thread end
+    assert solver._worker.wait(5)

@@ -111,8 +111,12 @@ class DirectSolver(Solver):
         F = self._assembly.step()
         if F is None:
             return
-        self.K = transport(F, self.area)
-        self.B = self._solve(F, self.K)
+        K = transport(F, self.area)
+        self._finish(K, self._solve(F, K), t0)
+
+    def _finish(self, K, B: np.ndarray, t0: float):
+        """Take B (scaled units) as the answer: the books and the residual of B."""
+        self.K, self.B = K, B
         self.H = self.K @ self.B
         self.iterations = 1
         self._residual = self.E + self.rho * self.H - self.B

@@ -10,17 +10,29 @@ areas (n,); RadTR's own solvers solve B = E + R K B with K = diag(1/A) F^T diag(
 ``base``). B must be (n, 3) (or (n,) for grey) and finite. Anything else, or an exception
 in the user's code, is reported as a ``UserSolverError`` naming the function, and nothing
 in the scene changes. ``examples/direct_solver.py`` is a working example.
+
+The function runs in a worker thread; each solver step waits for it at most ``WAIT``
+seconds, so a function that never returns does not hang RadTR: Esc (Cancel) in the panel
+drops the job and Ctrl-C ends the CLI ("cancelled") while it runs. Python cannot stop a
+thread, so the abandoned function itself runs on, using its CPU and memory, until it
+returns or Blender (or the CLI process) exits; there is no time limit of its own.
 """
 from __future__ import annotations
 
 import importlib
 import importlib.util
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import RadTRError, describe
 from .direct import DirectSolver
+from .matrix import transport
+
+#: Seconds one solver step waits for the user's function before handing control back.
+WAIT = 0.1
 
 
 class UserSolverError(RadTRError):
@@ -93,8 +105,25 @@ class UserSolver(DirectSolver):
         seconds = rows.seconds / max(rows.computed, 1) * (n - len(rows.held))
         return seconds, f"assembling {n:,} form-factor rows"
 
+    _worker = None
+
+    @property
+    def phase(self) -> str:
+        if self._worker is not None and self.K is None:
+            return f"user solver '{self.spec}' running for {time.perf_counter() - self._worker.started:.0f} s"
+        return super().phase
+
     def _advance(self, t0: float):
-        super()._advance(t0)
+        if self._worker is None:
+            F = self._assembly.step()
+            if F is not None:
+                self._worker = _Worker(lambda: self._solve(F, None))
+                self._F = F
+            return
+        if not self._worker.wait(max(WAIT - (time.perf_counter() - t0), 0.0)):   # WAIT in all per step
+            return
+        self._finish(transport(self._F, self.area), self._worker.answer(), t0)
+        self._F = None
         if self.done and not self.converged:
             raise UserSolverError(f"user solver '{self.spec}' returned a B whose residual is {self.residual:.3g} "
                                   f"of the emitted power, above the tolerance {self.tol:g}: it does not solve "
@@ -105,3 +134,29 @@ class UserSolver(DirectSolver):
         B = call_user_solver(self.function, self.spec, s.n, F=F, E=s.emission.copy(), rho=s.rho.copy(),
                              areas=s.areas.copy())
         return B / self.scale
+
+
+class _Worker:
+    """``fn()`` in a daemon thread; ``answer`` returns its value or raises what it raised."""
+
+    def __init__(self, fn):
+        self.started = time.perf_counter()
+        self._value, self._error = None, None
+
+        def run():
+            try:
+                self._value = fn()
+            except BaseException as exc:       # KeyboardInterrupt, SystemExit: re-raised in the caller
+                self._error = exc
+        self._thread = threading.Thread(target=run, name="radtr-user-solver", daemon=True)
+        self._thread.start()
+
+    def wait(self, seconds: float) -> bool:
+        """True once the function has returned (waiting at most ``seconds``)."""
+        self._thread.join(seconds)
+        return not self._thread.is_alive()
+
+    def answer(self):
+        if self._error is not None:
+            raise self._error
+        return self._value
