@@ -20,7 +20,7 @@ from ..hierarchy import subdivide
 from ..lights import Light, direct_irradiance, sky_irradiance
 from ..reconstruct import VertexRadiosity
 from ..scene import PatchScene
-from ..solvers import make_solver
+from ..solvers import make_solver, patch_bytes
 from ..textures import varying_reflectance
 from .extract import extract, source_objects
 from .lights import scene_lights, world_radiance
@@ -163,7 +163,8 @@ class SolveJob:
         with self._stage("subdivide"):
             base = self.extraction.scene
             max_area = settings.max_area or auto_max_area(base.areas.sum(), settings.levels)
-            self.hierarchy = subdivide(base, max_area, settings.levels)
+            self.hierarchy = subdivide(base, max_area, settings.levels, budget_bytes=settings.cache_mb << 20,
+                                       bytes_per_patch=patch_bytes(settings.solver), what=f"a {settings.solver} solve")
         self.leaves = self.hierarchy.leaves
         self.stats.patches = self.leaves.n
         if self.extraction.textures or self.extraction.attributes:
