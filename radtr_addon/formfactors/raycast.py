@@ -25,11 +25,10 @@ RAYS_PER_CALL = 1 << 20
 ORIGINS = ("area", "centroid")
 
 
-def _triangle_points(tri: np.ndarray, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
-    """Uniform points on triangles (k, 3, 3) from unit-square samples (k, m)."""
-    s = np.sqrt(r1)[..., None]
-    a, b, c = tri[:, None, 0], tri[:, None, 1], tri[:, None, 2]
-    return (1 - s) * a + s * (1 - r2[..., None]) * b + s * r2[..., None] * c
+def triangle_points(tris: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Uniform points (..., 3) on triangles (..., 3, 3) from unit-square samples u, v (...)."""
+    s = np.sqrt(u)[..., None]
+    return (1 - s) * tris[..., 0, :] + s * (1 - v[..., None]) * tris[..., 1, :] + s * v[..., None] * tris[..., 2, :]
 
 
 def cosine_directions(u: np.ndarray, v: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -91,7 +90,7 @@ class EmbreeRays:
         samples = [self._samples(int(i)) for i in ids]
         normals = s.normals[ids]
         if self.origins == "area":
-            origins = _triangle_points(self.tris[ids], np.stack([x[2] for x in samples]),
+            origins = triangle_points(self.tris[ids][:, None], np.stack([x[2] for x in samples]),
                                        np.stack([x[3] for x in samples]))
         else:
             origins = np.broadcast_to(s.centroids[ids][:, None], (k, m2, 3))
@@ -152,7 +151,7 @@ class EmbreeRays:
         cells = np.arange(m * m)
         rng = np.random.default_rng((self.seed, int(j), 1))
         r1, r2 = (cells // m + rng.random(m * m)) / m, (cells % m + rng.random(m * m)) / m
-        targets = _triangle_points(self.tris[[j]], r1[None], r2[None])[0]
+        targets = triangle_points(self.tris[j], r1, r2)
         d = targets - point
         dist = np.linalg.norm(d, axis=1)
         keep = dist > 0

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..formfactors.raycast import triangle_points
 from . import quadratic
 from .nodes import DIRECTIONS, Nodes, nearest_direction
 
@@ -112,12 +113,6 @@ def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) ->
     F = np.abs(terms.sum(axis=-1)) / (2 * np.pi)
     ok = front & (last[..., 0] >= 0) & (h > 0).any(axis=-1)
     return np.where(ok, np.minimum(F, 1.0), 0.0)
-
-
-def triangle_points(tris: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Uniform points (..., 3) on triangles (..., 3, 3) from unit-square samples u, v (...)."""
-    s = np.sqrt(u)[..., None]
-    return (1 - s) * tris[..., 0, :] + s * (1 - v[..., None]) * tris[..., 1, :] + s * v[..., None] * tris[..., 2, :]
 
 
 class Evaluator:
