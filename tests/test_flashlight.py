@@ -47,6 +47,36 @@ def test_lowrank_error_per_level_on_the_cornell_box(solved):
     assert refined < 0.5 * errors[(2, k2)]                   # measured 0.0033 against 0.018
 
 
+#: The Cornell camera, in front of the box's open side, looking in along -y.
+EYE = np.array([0.278, 0.8, 0.273])
+
+
+def test_the_flashlight_lights_the_box_and_follows_the_direct_solve(solved, tmp_path):
+    """The default pose lights patches; the low-rank B for its light equals a direct solve of
+    the same emission within the level's error; size, intensity and colour change B."""
+    from radtr_addon.scene import PatchScene
+    from radtr_addon.solvers import solve as solve_system
+
+    job = solved
+    light, _, _, _ = flashlight_for(job, 2, folder=tmp_path)
+    spot = default_spot(job.leaves, EYE, [0, -1, -0.3])
+    E = light.emission(spot)
+    lit = (E != job.leaves.emission).any(axis=1)
+    assert lit.sum() > 50
+    B, _ = light.frame(spot)
+    s = job.leaves
+    scene = PatchScene(s.vertices, s.triangles, s.rho, E, s.object_index, s.material_index)
+    direct = solve_system("direct", scene, job.rows, tol=1e-10).B
+    level_error = float(np.sqrt(np.mean((build(job.hierarchy, job.rows, 2).solve(s.emission) - job.result.B) ** 2)
+                                / np.mean(job.result.B ** 2)))
+    error = float(np.sqrt(np.mean((B - direct) ** 2) / np.mean(direct ** 2)))
+    print(f"lit {int(lit.sum())} patches; low-rank vs direct {error:.4f} (level error, no spot: {level_error:.4f})")
+    assert error < 2 * level_error + 1e-3
+    for change in ({"angle": spot.angle * 1.5}, {"intensity": spot.intensity * 2}, {"color": np.array([1, 0.2, 0.2])}):
+        other = type(spot)(**{**spot.__dict__, **change})
+        assert not np.allclose(light.frame(other)[0], B)
+
+
 def colours(meshes):
     return [b.copy() for pair in meshes.snapshot() for b in pair]
 
@@ -56,9 +86,8 @@ def test_modal_handlers_change_the_light_and_escape_restores_bytes(solved, tmp_p
     light, meshes, warnings, hit = flashlight_for(job, 2, folder=tmp_path)
     assert not hit and not warnings
     before = colours(meshes)
-    eye = np.array([0.278, -0.8, 0.273])                       # the Cornell camera
-    session = FlashlightSession(light, meshes, default_spot(job.leaves, eye, [0, 1, 0]))
-    assert session.handle("MOUSEMOVE", "NOTHING", (eye, np.array([0.0, 1.0, -0.3]))) == {"RUNNING_MODAL"}
+    session = FlashlightSession(light, meshes, default_spot(job.leaves, EYE, [0, -1, 0]))
+    assert session.handle("MOUSEMOVE", "NOTHING", (EYE, np.array([0.0, -1.0, -0.3]))) == {"RUNNING_MODAL"}
     lit = colours(meshes)
     assert any(not np.array_equal(a, b) for a, b in zip(lit, before))
     angle, intensity = session.spot.angle, session.spot.intensity
@@ -80,7 +109,7 @@ def test_modal_handlers_change_the_light_and_escape_restores_bytes(solved, tmp_p
     # a second session from the cache; left click keeps its light
     light2, meshes2, _, hit = flashlight_for(job, 2, folder=tmp_path)
     assert hit
-    kept = FlashlightSession(light2, meshes2, default_spot(job.leaves, eye, [0, 1, -0.3]))
+    kept = FlashlightSession(light2, meshes2, default_spot(job.leaves, EYE, [0, -1, -0.3]))
     kept.update()
     assert kept.handle("LEFTMOUSE") == {"FINISHED"}
     assert any(not np.array_equal(a, b) for a, b in zip(colours(meshes2), before))
@@ -90,9 +119,9 @@ def test_batch_poses_render_one_png_each(solved, tmp_path):
     job = solved
     light, meshes, _, _ = flashlight_for(job, 2, folder=tmp_path / "cache")
     before = colours(meshes)
-    eye = np.array([0.278, -0.8, 0.273])
-    spots = [default_spot(job.leaves, eye, d) for d in ([0, 1, 0], [0.3, 1, -0.2])]
+    spots = [default_spot(job.leaves, EYE, d) for d in ([0, -1, 0], [0.3, -1, -0.2])]
     paths = render_poses(job.bl_scene, light, meshes, spots, tmp_path / "frames")
     assert [p.name for p in paths] == ["flashlight_000.png", "flashlight_001.png"]
-    assert all(p.stat().st_size > 1000 for p in paths)
+    a, b = (p.read_bytes() for p in paths)
+    assert a != b                                           # two poses that light, two pictures
     assert all(np.array_equal(a, b) for a, b in zip(colours(meshes), before))

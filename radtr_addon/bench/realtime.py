@@ -5,7 +5,8 @@ gets enough levels (each round halves the area limit) for a level near ``CLUSTER
 and that level (k clusters) is factored from Embree rows (256 rays). Table ``precompute``:
 seconds by stage (hierarchy, form factors of the k representatives, U, LU) and the memory
 of U, next to the seed's set-up (Tables 7 and 10).
-Table ``frames``: per back-end, colour and mono, ms per frame by stage (visibility of the
+Table ``frames``: per back-end, colour and mono, the fewest and most patches a pose lights
+(the poses sweep the inside of the box from the camera), ms per frame by stage (visibility of the
 spot, the k-sized coefficients, the n x k product, write-back into the Blender meshes) and
 updates per second, over ``FRAMES`` spot poses; ``bound_ms`` is the time a memory-bound
 product would need: U's bytes over the read bandwidth of a numpy copy of the same size,
@@ -24,17 +25,19 @@ from ..lowrank.flashlight import Flashlight, Spot
 SIZES = (3584, 10000, 50000, 100000)
 CLUSTERS = 1024
 FRAMES = 20
-EYE = np.array([0.278, -0.8, 0.273])
+EYE = np.array([0.278, 0.8, 0.273])            # the Cornell camera, in front of the open side
 #: The seed's real-time set-up and frame rates (Tables 7 and 10; CPU / GPU).
 SEED = {3584: "set-up 50.5 s; colour 75 / 115 FPS, mono 115 / 140",
         9696: "set-up 940 / 422 s; colour 4 / 29 FPS, mono 10 / 58 (LivingLiteColor)"}
 
 
-def spots(count: int) -> list[Spot]:
-    """Spot poses sweeping the box from the camera position."""
+def spots(count: int, scene) -> list[Spot]:
+    """Spot poses sweeping the inside of the box from the camera position, of the order of
+    the box's own light (``default_spot``)."""
+    from ..blender.flashlight import default_spot
+
     angles = np.linspace(-0.4, 0.4, count)
-    return [Spot(EYE, np.array([np.sin(a), 1.0, -0.3 * np.cos(3 * a)]), np.radians(20.0), 0.05)
-            for a in angles]
+    return [default_spot(scene, EYE, np.array([np.sin(a), -1.0, -0.3 * np.cos(3 * a)])) for a in angles]
 
 
 def job_for(target: int, levels: int):
@@ -64,7 +67,7 @@ def frames(job, lowrank, backend: str, mono: bool) -> dict:
     light = Flashlight(job.leaves, lowrank, backend)
     light.set_mono(mono)
     meshes = LiveMeshes(job.objects, job.leaves)
-    poses = spots(FRAMES)
+    poses = spots(FRAMES, job.leaves)
     light.frame(poses[0])                          # warm-up (kernel build, first allocation)
     stages = {"visibility": 0.0, "coefficients": 0.0, "product": 0.0, "write": 0.0}
     light.backend.seconds = {"coefficients": 0.0, "product": 0.0}
@@ -78,8 +81,10 @@ def frames(job, lowrank, backend: str, mono: bool) -> dict:
     total = time.perf_counter() - t_all
     stages.update(light.backend.seconds)
     row = {f"{k}_ms": round(1e3 * v / FRAMES, 2) for k, v in stages.items()}
-    return {"backend": backend, "mode": "mono" if mono else "colour", **row,
-            "updates_s": round(FRAMES / total, 1)}
+    E0 = job.leaves.emission.mean(axis=1, keepdims=True) if mono else job.leaves.emission
+    lit = [int((light.emission(spot) != E0).any(axis=1).sum()) for spot in poses]
+    return {"backend": backend, "mode": "mono" if mono else "colour", "lit_min": min(lit), "lit_max": max(lit),
+            **row, "updates_s": round(FRAMES / total, 1)}
 
 
 def run(quick: bool = False) -> dict[str, list[dict]]:
