@@ -85,34 +85,48 @@ class Links:
 def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """Unoccluded form factors (L, P) from points (L, P, 3) facing ``normals`` (L, 3) to the
     fronts of triangles (L, 3, 3), pair by pair: Lambert's contour integral over the part of
-    each triangle above the point's tangent plane (clipped, so at most a quadrilateral)."""
+    each triangle above the point's tangent plane (clipped, so at most a quadrilateral;
+    most triangles are wholly above and go through the three-corner sum as they are)."""
     L, P = points.shape[:2]
     n_t = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     front = np.einsum("lpc,lc->lp", points - tris[:, None, 0], n_t) > 0
-    v = np.broadcast_to(tris[:, None], (L, P, 3, 3))
-    h = np.einsum("lpkc,lc->lpk", v - points[:, :, None], normals)
-    h1, v1 = np.roll(h, -1, axis=2), np.roll(v, -1, axis=2)
+    h = np.einsum("lkc,lc->lk", tris, normals)[:, None, :] - np.einsum("lpc,lc->lp", points, normals)[..., None]
+    F = np.zeros((L, P))
+    whole = front & (h > 0).all(axis=-1)
+    li, pi = np.nonzero(whole)
+    if len(li):
+        F[li, pi] = _lambert(tris[li] - points[li, pi][:, None], normals[li])
+    li, pi = np.nonzero(front & ~whole & (h > 0).any(axis=-1))
+    if len(li):
+        F[li, pi] = _lambert(_clipped(tris[li], h[li, pi]) - points[li, pi][:, None], normals[li])
+    return np.minimum(F, 1.0)
+
+
+def _clipped(v: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Triangles (m, 3, 3) cut to where their height ``h`` (m, 3) above a plane is >= 0, as six
+    corners (m, 6, 3) with repeats (a repeated corner adds nothing to Lambert's sum)."""
+    h1, v1 = np.roll(h, -1, axis=1), np.roll(v, -1, axis=1)
     inside, crossing = h >= 0, (h >= 0) != (h1 >= 0)
     with np.errstate(invalid="ignore", divide="ignore"):
         t = np.where(crossing, h / (h - h1), 0.0)
     cut = v + t[..., None] * (v1 - v)
-    slots = np.stack([v, cut], axis=3).reshape(L, P, 6, 3)           # corner, crossing, corner, ...
-    valid = np.stack([inside, crossing], axis=3).reshape(L, P, 6)
-    idx = np.where(valid, np.arange(6), -1)
-    idx = np.maximum.accumulate(idx, axis=2)
-    last = idx[..., -1:]
-    idx = np.where(idx < 0, last, idx)                                # fill gaps cyclically
-    poly = np.take_along_axis(slots, np.maximum(idx, 0)[..., None], axis=2) - points[:, :, None]
+    slots = np.stack([v, cut], axis=2).reshape(-1, 6, 3)               # corner, crossing, corner, ...
+    valid = np.stack([inside, crossing], axis=2).reshape(-1, 6)
+    idx = np.maximum.accumulate(np.where(valid, np.arange(6), -1), axis=1)
+    idx = np.where(idx < 0, idx[:, -1:], idx)                          # fill gaps cyclically
+    return np.take_along_axis(slots, idx[..., None], axis=1)
+
+
+def _lambert(poly: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Lambert's contour sum (m,) for polygons (m, k, 3) seen from the origin facing ``normals``."""
     r = poly / np.maximum(np.linalg.norm(poly, axis=-1, keepdims=True), 1e-300)
-    r2 = np.roll(r, -1, axis=2)
+    r2 = np.roll(r, -1, axis=1)
     cross = np.cross(r, r2)
     sin = np.linalg.norm(cross, axis=-1)
-    gamma = np.arctan2(sin, np.einsum("lpkc,lpkc->lpk", r, r2))
+    gamma = np.arctan2(sin, np.einsum("mkc,mkc->mk", r, r2))
     with np.errstate(invalid="ignore", divide="ignore"):
-        terms = np.where(sin > 1e-15, gamma * np.einsum("lpkc,lc->lpk", cross, normals) / sin, 0.0)
-    F = np.abs(terms.sum(axis=-1)) / (2 * np.pi)
-    ok = front & (last[..., 0] >= 0) & (h > 0).any(axis=-1)
-    return np.where(ok, np.minimum(F, 1.0), 0.0)
+        terms = np.where(sin > 1e-15, gamma * np.einsum("mkc,mc->mk", cross, normals) / sin, 0.0)
+    return np.abs(terms.sum(axis=-1)) / (2 * np.pi)
 
 
 class Evaluator:
