@@ -37,9 +37,15 @@ on another surface are left out. Every face's normal faces free space.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
+
+_spec = importlib.util.spec_from_file_location("radtr_scene_common", Path(__file__).with_name("_common.py"))
+common = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(common)
 
 NX, NY = 9, 5                    # bays along x and y
 SPAN = 3.0                       # bay width (column centre to column centre)
@@ -362,39 +368,15 @@ def sun_direction() -> np.ndarray:
 def build(bpy):
     """Add the atrium (objects, materials, sun, sky, camera) to the current scene; return it."""
     scene = bpy.context.scene
-    mats = {name: _material(bpy, name, *spec) for name, spec in MATERIALS.items()}
+    mats = {name: common.material(bpy, name, *spec) for name, spec in MATERIALS.items()}
     for name, (mat, verts, quads, tris) in geometry().items():
         obj = bpy.data.objects.new(name, _mesh(bpy, name, verts, quads, tris))
         obj.data.materials.append(mats[mat])
         scene.collection.objects.link(obj)
 
-    sun_data = bpy.data.lights.new("Sun", type="SUN")
-    sun_data.energy, sun_data.angle = 5.0, math.radians(0.5)
-    sun_data.color = (1.0, 0.95, 0.88)
-    sun = bpy.data.objects.new("Sun", sun_data)
-    sun.location = (0.0, 0.0, 20.0)
-    sun.rotation_euler = _look_rotation(sun_direction())
-    scene.collection.objects.link(sun)
-
-    world = bpy.data.worlds.new("Sky")
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    background = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
-    background.inputs["Color"].default_value = (0.45, 0.6, 0.9, 1.0)
-    background.inputs["Strength"].default_value = 1.0
-    scene.world = world
-
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 18.0, 36.0, "HORIZONTAL"
-    cam_data.clip_end = 200.0
-    cam = bpy.data.objects.new("Camera", cam_data)
-    location, target = (np.array(p, float) for p in CAMERA)
-    cam.location = location
-    cam.rotation_euler = _look_rotation(target - location)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x, scene.render.resolution_y = 960, 540
-    scene.view_settings.view_transform = "Standard"
+    common.add_sun(bpy, scene, 5.0, sun_direction(), (0.0, 0.0, 20.0))
+    common.add_sky(bpy, scene, (0.45, 0.6, 0.9))
+    common.add_camera(bpy, scene, *CAMERA, (960, 540), clip_end=200.0)
     return scene
 
 
@@ -411,24 +393,3 @@ def _mesh(bpy, name, verts, quads, tris):
     mesh.polygons.foreach_set("loop_start", starts.astype(np.int32))
     mesh.update(calc_edges=True)
     return mesh
-
-
-def _look_rotation(direction):
-    from mathutils import Vector
-
-    return Vector(tuple(direction)).to_track_quat("-Z", "Y").to_euler()
-
-
-def _material(bpy, name, rho, strength, colour):
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*rho, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    bsdf.inputs["Specular IOR Level"].default_value = 0.0
-    if strength > 0:
-        bsdf.inputs["Emission Color"].default_value = (*colour, 1.0)
-        bsdf.inputs["Emission Strength"].default_value = strength
-    mat.diffuse_color = (*rho, 1.0)
-    return mat

@@ -10,9 +10,15 @@ The camera is the published one: (278, 273, -800) looking +z, 35 mm lens, 25 mm 
 """
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
+
+_spec = importlib.util.spec_from_file_location("radtr_scene_common", Path(__file__).with_name("_common.py"))
+common = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(common)
 
 MATERIALS = {  # name: (RGB reflectance, emitted radiance)
     "white": ((0.725, 0.71, 0.68), (0.0, 0.0, 0.0)),
@@ -83,7 +89,11 @@ def oriented_quads(name: str) -> np.ndarray:
 def build(bpy):
     """Add the Cornell box (objects, materials, camera) to the current scene; return the scene."""
     scene = bpy.context.scene
-    mats = {name: _material(bpy, name, rho, radiance) for name, (rho, radiance) in MATERIALS.items()}
+    mats = {}
+    for name, (rho, radiance) in MATERIALS.items():
+        strength = max(radiance)
+        colour = [c / strength for c in radiance] if strength > 0 else (1.0, 1.0, 1.0)
+        mats[name] = common.material(bpy, name, rho, strength, colour)
     for name, (mat, _, _) in SURFACES.items():
         quads = to_blender(oriented_quads(name))
         mesh = bpy.data.meshes.new(name)
@@ -101,19 +111,3 @@ def build(bpy):
     scene.render.resolution_x = scene.render.resolution_y = 512
     scene.view_settings.view_transform = "Standard"
     return scene
-
-
-def _material(bpy, name, rho, radiance):
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*rho, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    bsdf.inputs["Specular IOR Level"].default_value = 0.0
-    strength = max(radiance)
-    if strength > 0:
-        bsdf.inputs["Emission Color"].default_value = (*(c / strength for c in radiance), 1.0)
-        bsdf.inputs["Emission Strength"].default_value = strength
-    mat.diffuse_color = (*rho, 1.0)
-    return mat

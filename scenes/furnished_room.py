@@ -40,9 +40,15 @@ facing out. 56 quads, 112 input triangles.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
+
+_spec = importlib.util.spec_from_file_location("radtr_scene_common", Path(__file__).with_name("_common.py"))
+common = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(common)
 
 ROOM = (5.0, 4.0, 2.7)
 WINDOW = (1.2, 2.6, 0.8, 2.1)          # y0, y1, z0, z1 of the opening in the east wall (x = 5)
@@ -137,7 +143,7 @@ def sun_direction() -> np.ndarray:
 def build(bpy):
     """Add the furnished room (objects, materials, sun, sky, camera) to the current scene; return it."""
     scene = bpy.context.scene
-    mats = {name: _material(bpy, name, *spec) for name, spec in MATERIALS.items()}
+    mats = {name: common.material(bpy, name, *spec) for name, spec in MATERIALS.items()}
     for name, (mat, quads) in room_surfaces().items():
         _add_mesh(bpy, scene, name, np.array(quads, float).reshape(-1, 3),
                   np.arange(4 * len(quads)).reshape(-1, 4), mats[mat])
@@ -149,40 +155,10 @@ def build(bpy):
         _add_mesh(bpy, scene, name, np.concatenate(verts), np.array(faces), mats[mat])
     _add_mesh(bpy, scene, "Lamp", np.array(lamp_quad(), float), np.arange(4).reshape(1, 4), mats["Lamp"])
 
-    sun_data = bpy.data.lights.new("Sun", type="SUN")
-    sun_data.energy, sun_data.angle = 10.0, math.radians(0.5)
-    sun_data.color = (1.0, 0.95, 0.88)
-    sun = bpy.data.objects.new("Sun", sun_data)
-    sun.location = (7.0, 2.5, 3.5)
-    sun.rotation_euler = _look_rotation(sun_direction())
-    scene.collection.objects.link(sun)
-
-    world = bpy.data.worlds.new("Sky")
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    background = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
-    background.inputs["Color"].default_value = (0.4, 0.6, 1.0, 1.0)
-    background.inputs["Strength"].default_value = 1.0
-    scene.world = world
-
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 18.0, 36.0, "HORIZONTAL"
-    cam = bpy.data.objects.new("Camera", cam_data)
-    location, target = (np.array(p, float) for p in CAMERA)
-    cam.location = location
-    cam.rotation_euler = _look_rotation(target - location)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x, scene.render.resolution_y = 640, 480
-    scene.view_settings.view_transform = "Standard"
+    common.add_sun(bpy, scene, 10.0, sun_direction(), (7.0, 2.5, 3.5))
+    common.add_sky(bpy, scene, (0.4, 0.6, 1.0))
+    common.add_camera(bpy, scene, *CAMERA, (640, 480))
     return scene
-
-
-def _look_rotation(direction):
-    """Euler rotation that points an object's -Z along ``direction`` with +Y up."""
-    from mathutils import Vector
-
-    return Vector(tuple(direction)).to_track_quat("-Z", "Y").to_euler()
 
 
 def _add_mesh(bpy, scene, name, verts, faces, mat):
@@ -193,18 +169,3 @@ def _add_mesh(bpy, scene, name, verts, faces, mat):
     obj = bpy.data.objects.new(name, mesh)
     scene.collection.objects.link(obj)
     return obj
-
-
-def _material(bpy, name, rho, strength, colour):
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*rho, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    bsdf.inputs["Specular IOR Level"].default_value = 0.0
-    if strength > 0:
-        bsdf.inputs["Emission Color"].default_value = (*colour, 1.0)
-        bsdf.inputs["Emission Strength"].default_value = strength
-    mat.diffuse_color = (*rho, 1.0)
-    return mat

@@ -163,18 +163,6 @@ class Nodes:
         for c in clusters[1:] if k else []:         # breadth first: parents come before children
             self.cluster_depth[self.cluster_row[c]] = self.cluster_depth[self.cluster_row[self.parent[c]]] + 1
 
-    def members(self, node: int) -> np.ndarray:
-        """Input triangles under cluster ``node``."""
-        out, stack = [], [node]
-        while stack:
-            n = stack.pop()
-            if not self.cluster[n]:
-                out.append(self.root[n])
-                continue
-            f = self.first_child[n]
-            stack += list(range(f, f + self.n_children[n]))
-        return np.array(out, np.int64)
-
     # -- elements ------------------------------------------------------------------------
     def init_light(self, ids: np.ndarray):
         """E, H_ext and H_spread of new elements ``ids``: emission plus the reflected external
