@@ -29,18 +29,58 @@ SHADOW_SAMPLES = 16
 INSET = 0.01
 
 
+#: Faces meeting at a vertex at more than this angle (degrees) get a vertex each there, so
+#: colours do not bleed across a box's edge (Blender's own default Auto Smooth angle).
+CREASE_ANGLE = 30.0
+
+
 @dataclass
 class MeshPart:
-    """The patches of one result mesh: their ids, the scene vertices used, local triangles."""
+    """The patches of one result mesh: their ids, its vertices and local triangles.
+
+    A scene vertex where faces meet at a crease (``CREASE_ANGLE``) appears once per smooth
+    group of the faces around it: a box's corner is three vertices, one per side."""
 
     patches: np.ndarray      # (t,) patch ids
-    vertex_ids: np.ndarray   # (v,) scene vertex ids, sorted; local vertex k is vertex_ids[k]
+    vertex_ids: np.ndarray   # (v,) scene vertex of each local vertex (repeated at creases)
     local: np.ndarray        # (t, 3) triangles in local vertex numbers
+    normals: np.ndarray      # (v, 3) unit normal of each local vertex's smooth group
 
 
-def mesh_part(scene, patches: np.ndarray) -> MeshPart:
-    used, local = np.unique(scene.triangles[patches], return_inverse=True)
-    return MeshPart(patches, used, local.reshape(-1, 3))
+def mesh_part(scene, patches: np.ndarray, crease_angle: float = CREASE_ANGLE) -> MeshPart:
+    """The result mesh of ``patches``: corners at one scene vertex share a local vertex when
+    their faces are joined, at that vertex, by a chain of faces each within ``crease_angle``
+    of the next."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    patches = np.asarray(patches)
+    tris = scene.triangles[patches]
+    corner_v = tris.ravel()
+    corner_n = np.repeat(scene.normals[patches], 3, axis=0)
+    order = np.argsort(corner_v, kind="stable")
+    v_sorted = corner_v[order]
+    starts = np.flatnonzero(np.r_[True, v_sorted[1:] != v_sorted[:-1]])
+    sizes = np.diff(np.r_[starts, len(order)])
+    # every pair of corners at the same vertex, joined where their faces are within the angle
+    grp = np.repeat(np.arange(len(starts)), sizes)
+    first = np.repeat(starts, sizes)
+    count = sizes[grp]
+    i = np.repeat(np.arange(len(order)), count)
+    j = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+    a, b = order[i], order[j]
+    keep = np.einsum("ij,ij->i", corner_n[a], corner_n[b]) >= np.cos(np.radians(crease_angle))
+    graph = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(len(corner_v),) * 2)
+    _, label = connected_components(graph, directed=False)
+    # local vertices ordered by scene vertex, then group
+    key = corner_v.astype(np.int64) * (len(corner_v) + 1) + label
+    uniq, local = np.unique(key, return_inverse=True)
+    vertex_ids = uniq // (len(corner_v) + 1)
+    area = np.repeat(scene.areas[patches], 3)
+    normals = np.zeros((len(uniq), 3))
+    np.add.at(normals, local, corner_n * area[:, None])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    return MeshPart(patches, vertex_ids, local.reshape(-1, 3), normals)
 
 
 def vertex_average(tris: np.ndarray, n_vertices: int, values: np.ndarray, areas: np.ndarray):
@@ -72,8 +112,7 @@ class VertexRadiosity:
             return self.mean(part, self.B)
         t0 = time.perf_counter()
         s = self.scene
-        normals = self.mean(part, s.normals)
-        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+        normals = part.normals
         points = inset_points(s.vertices[part.vertex_ids], self.mean(part, s.centroids))
         H = gather(s, self.B, points, normals, caster=self.caster)
         out = self.mean(part, s.emission) + self.mean(part, s.rho) * H

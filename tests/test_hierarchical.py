@@ -239,3 +239,56 @@ def test_solve_operator_writes_adaptive_leaves(addon, blend):
     s.quality = 0.03
     assert bpy.ops.radtr.solve() == {"FINISHED"}
     assert running["last"].leaves.n > coarse
+
+
+def test_result_meshes_have_no_cracks_at_t_vertices():
+    """Every vertex of a result mesh that lies inside an edge of one of its triangles (a
+    T-vertex, found here by geometry) carries the value the triangle's linear colours give
+    there, so shading has no cracks; the floor's shadow makes many such vertices."""
+    from radtr_addon.reconstruct import mesh_part
+
+    scene, _ = box_on_floor()
+    hr, r = run(scene, quality=0.01)
+    leaves = r.leaves
+    part = mesh_part(leaves, np.flatnonzero(leaves.object_index == 0))
+    values = r.mesh_vertex_values(part)[:, 0]
+    P = leaves.vertices[part.vertex_ids]
+    checked = 0
+    for tri in part.local:
+        for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])):
+            d = P[b] - P[a]
+            t = (P - P[a]) @ d / (d @ d)
+            off = np.linalg.norm(P - P[a] - t[:, None] * d, axis=1)
+            inside = np.flatnonzero((t > 1e-9) & (t < 1 - 1e-9) & (off < 1e-9))
+            expected = values[a] + t[inside] * (values[b] - values[a])
+            np.testing.assert_allclose(values[inside], expected, rtol=1e-9, atol=1e-12)
+            checked += len(inside)
+    assert checked > 20
+
+
+def test_result_meshes_split_vertices_at_creases_only():
+    """A cube's corner joins three faces at 90 degrees: three vertices, one per face, so one
+    face's light does not bleed onto the next; a finely tessellated sphere stays one smooth
+    mesh (no vertex repeated)."""
+    from scipy.spatial import ConvexHull
+
+    from radtr_addon.reconstruct import mesh_part
+
+    box = cube()
+    part = mesh_part(box, np.arange(box.n))
+    assert len(part.vertex_ids) == 24
+    assert np.all(np.bincount(part.vertex_ids) == 3)
+    assert len(mesh_part(box, np.arange(box.n), crease_angle=91.0).vertex_ids) == 8
+    k = np.arange(600) + 0.5
+    z = 1 - 2 * k / 600
+    phi = np.pi * (1 + 5 ** 0.5) * k
+    pts = np.column_stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z])
+    hull = ConvexHull(pts)
+    tris = hull.simplices.copy()
+    flip = np.einsum("ij,ij->i", np.cross(pts[tris[:, 1]] - pts[tris[:, 0]], pts[tris[:, 2]] - pts[tris[:, 0]]),
+                     pts[tris].mean(axis=1)) < 0
+    tris[flip] = tris[flip][:, ::-1]
+    sphere = PatchScene(pts, tris, 0.5, 0.0, 0, 0)
+    part = mesh_part(sphere, np.arange(sphere.n))
+    assert len(part.vertex_ids) == 600
+    assert np.all(np.einsum("ij,ij->i", part.normals, pts[part.vertex_ids]) > 0.99)

@@ -59,46 +59,50 @@ class HierarchicalResult:
     elements: int
     rounds: list = field(default_factory=list)   # per round: links, leaves, seconds
 
-    def vertex_values(self) -> np.ndarray:
-        """Radiosity (v, 3) at every vertex of ``leaves``: the area mean of the leaves' own
-        corner values there, then every T-vertex set on the line between its edge's ends, so
-        colours have no cracks."""
+    def mesh_vertex_values(self, part) -> np.ndarray:
+        """Radiosity (v, 3) at a result mesh's vertices (``reconstruct.MeshPart``): the area
+        mean of the leaves' own corner values there, then every T-vertex set on the line
+        between its edge's ends, so colours have no cracks. At a crease each side is its own."""
         s = self.leaves
-        w = np.repeat(s.areas, 3)
-        idx = s.triangles.ravel()
-        total = np.bincount(idx, weights=w, minlength=len(s.vertices))
-        corner = self.corner_B.reshape(-1, 3)
-        values = np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=len(s.vertices))
+        w = np.repeat(s.areas[part.patches], 3)
+        idx = part.local.ravel()
+        n = len(part.vertex_ids)
+        total = np.bincount(idx, weights=w, minlength=n)
+        corner = self.corner_B[part.patches].reshape(-1, 3)
+        values = np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=n)
                            for c in range(3)], axis=1) / np.maximum(total, 1e-300)[:, None]
-        for m, a, b in t_vertices(s.triangles, self.midpoint):
+        for m, a, b in t_vertices(part, s.normals[part.patches], self.midpoint):
             values[m] = 0.5 * (values[a] + values[b])
         return values
 
-    def mesh_vertex_values(self, part) -> np.ndarray:
-        """``vertex_values`` at a result mesh's vertices (``reconstruct.MeshPart``)."""
-        if not hasattr(self, "_vertex_values"):
-            self._vertex_values = self.vertex_values()
-        return self._vertex_values[part.vertex_ids]
 
+def t_vertices(part, normals: np.ndarray, midpoint: dict) -> list[tuple[int, int, int]]:
+    """(m, a, b) local vertices of ``part`` for every vertex m inside an edge (a, b) of one of
+    its leaves (facing ``normals``), m on the same side of any crease as the leaf, in the order
+    that sets ends before midpoints (a midpoint is made after its ends)."""
+    from ..reconstruct import CREASE_ANGLE
 
-def t_vertices(triangles: np.ndarray, midpoint: dict) -> list[tuple[int, int, int]]:
-    """(m, a, b) for every vertex m inside an edge (a, b) of a leaf, in the order that sets
-    ends before midpoints (m is the midpoint of a, b; a vertex of a leaf is on no leaf edge)."""
-    out = []
-    stack = []
-    for a, b in np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]).tolist():
-        stack.append((a, b))
-    seen = set()
+    copies: dict[int, list[int]] = {}
+    for k, v in enumerate(part.vertex_ids.tolist()):
+        copies.setdefault(v, []).append(k)
+    cos = np.cos(np.radians(CREASE_ANGLE))
+    loc = part.local
+    stack = [(int(loc[t, e]), int(loc[t, (e + 1) % 3]), t) for t in range(len(loc)) for e in range(3)]
+    out, seen = [], set()
+    vid = part.vertex_ids
     while stack:
-        a, b = stack.pop()
-        key = (min(a, b) << 32) + max(a, b)
-        m = midpoint.get(key)
-        if m is None or key in seen:
+        a, b, t = stack.pop()
+        va, vb = int(vid[a]), int(vid[b])
+        m = midpoint.get((min(va, vb) << 32) + max(va, vb))
+        if m is None or (a, b) in seen or (b, a) in seen:
             continue
-        seen.add(key)
-        out.append((m, a, b))
-        stack += [(a, m), (m, b)]
-    return sorted(out)
+        seen.add((a, b))
+        side = [k for k in copies.get(m, ()) if part.normals[k] @ normals[t] >= cos]
+        if not side:
+            continue
+        out.append((vid[side[0]], side[0], a, b))
+        stack += [(a, side[0], t), (side[0], b, t)]
+    return [(m, a, b) for _, m, a, b in sorted(out)]
 
 
 class HierarchicalRadiosity:
