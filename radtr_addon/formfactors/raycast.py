@@ -132,6 +132,12 @@ class EmbreeRays:
         self.cast += len(origins)
         return self._embree.run(self._local(origins), np.asarray(dirs, np.float32)).astype(np.int64)
 
+    def distance(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Distance (k,) along unit ``dirs`` from ``origins`` to the first surface, inf for none."""
+        self.cast += len(origins)
+        t = self._embree.run(self._local(origins), np.asarray(dirs, np.float32), output=1)["tfar"]
+        return np.where(t < 1e36, t.astype(float) * self._unit, np.inf)
+
     def _local(self, points: np.ndarray) -> np.ndarray:
         """``points`` in the frame Embree sees (float32)."""
         return ((np.asarray(points, float) - self._centre) / self._unit).astype(np.float32)

@@ -4,7 +4,8 @@ node trees whose transfer is within the Quality bound epsilon, refined (lazily, 
 patch size) where light changes: near contacts, shadow boundaries, bright near fields.
 
 ``nodes``: cluster tree over the input triangles and element quadtrees below them;
-``links``: transfer, error estimate and refinement of links; ``solve``: refine-solve rounds,
+``links``: transfer, error estimate and refinement of links; ``contacts``: where another
+surface is close in front of part of a surface (gaps, resting objects); ``solve``: refine-solve rounds,
 push-pull gathering, the adaptive leaves and crack-free vertex colours.
 """
 from .solve import HierarchicalRadiosity, HierarchicalResult, HierarchicalSettings

@@ -45,9 +45,10 @@ class Nodes:
     Per node: ``cluster`` flag, ``parent``, ``first_child`` (-1: none yet), ``n_children``,
     ``center`` and ``radius`` of a bounding sphere, ``area``; per element: its corners
     ``tri`` (3, 3), vertex ids ``vids`` into ``vertices``, ``normal``, the input triangle
-    ``root``, ``level`` below it, and ``E`` (exitance, own emission plus the reflected
-    light of ``external``), ``H_ext`` (irradiance from lights outside the solve) and
-    ``H_spread`` (how much rho H_ext varies over the element).
+    ``root``, ``level`` below it, ``path`` (its child slots from the root, base 4), and
+    ``E`` (exitance, own emission plus the reflected light of ``external``), ``H_ext``
+    (irradiance from lights outside the solve) and ``H_spread`` (how much rho H_ext varies
+    over the element).
     """
 
     def __init__(self, scene: PatchScene, external=None):
@@ -60,9 +61,8 @@ class Nodes:
             "cluster": (bool, ()), "parent": (np.int64, ()), "first_child": (np.int64, ()),
             "n_children": (np.int64, ()), "center": (float, (3,)), "radius": (float, ()),
             "area": (float, ()), "tri": (float, (3, 3)), "vids": (np.int64, (3,)), "normal": (float, (3,)),
-            "root": (np.int64, ()), "level": (np.int64, ()), "E": (float, (3,)), "H_ext": (float, (3,)),
-            "H_spread": (float, ()),
-            "rho": (float, (3,)),
+            "root": (np.int64, ()), "level": (np.int64, ()), "path": (np.int64, ()), "E": (float, (3,)),
+            "H_ext": (float, (3,)), "H_spread": (float, ()), "rho": (float, (3,)),
         }
         for name, (dtype, shape) in self._arrays.items():
             setattr(self, name, np.zeros((16, *shape), dtype))
@@ -194,6 +194,7 @@ class Nodes:
         for name in ("normal", "root", "rho"):
             getattr(self, name)[new] = getattr(self, name)[parent]
         self.level[new] = self.level[parent] + 1
+        self.path[new] = 4 * self.path[parent] + np.tile(np.arange(4), len(ids))
         self.area[new] = self.area[parent] / 4
         self.first_child[ids], self.n_children[ids] = new[::4], 4
         self._set_sphere(new)

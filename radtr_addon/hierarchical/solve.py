@@ -1,7 +1,8 @@
 """Refine-solve rounds of hierarchical radiosity, push-pull gathering and the result.
 
 One round: refine every link whose error estimate (``links``) is over epsilon x the emitted
-power, with the radiosity of the last solve (E at first); refine the elements over which an
+power, with the radiosity of the last solve (E at first), and every link into a receiver with
+another surface close in front of part of it (``contacts``); refine the elements over which an
 outside light (Light objects, the World) varies by more than that too; then solve by Jacobi
 sweeps over the links with push-pull: pull the radiosity up the trees (an element's is the
 area mean of its leaves, a cluster's the light it sends along each table direction), gather
@@ -27,6 +28,7 @@ from ..errors import Cancelled, SceneError
 from ..scene import PatchScene
 from ..solvers.result import SolveResult
 from . import quadratic
+from .contacts import Proximity
 from .links import Evaluator, Links, direction_cosines, expand
 from .nodes import DIRECTIONS, Nodes, nearest_direction
 
@@ -126,6 +128,7 @@ class HierarchicalRadiosity:
         self.nodes = nd = Nodes(scene, external)
         self.caster = caster or EmbreeRays(scene, 1)
         self.evaluator = Evaluator(nd, self.caster, s.seed)
+        self.contacts = Proximity(nd, self.caster, s.max_level)
         self.size0 = nd.size                                     # cluster tree nodes
         self.proj_root = scene.areas[:, None] * np.maximum(scene.normals @ DIRECTIONS.T, 0.0)
         self.opposite = nearest_direction(-DIRECTIONS)
@@ -226,6 +229,16 @@ class HierarchicalRadiosity:
         return term
 
     # -- refinement ----------------------------------------------------------------------
+    def _to_refine(self, L: Links) -> tuple[np.ndarray, np.ndarray]:
+        """(need, split_src) per link: over the bound (the larger end split), or into a mixed
+        receiver (``contacts``: the receiver split), where an end can still split."""
+        nd = self.nodes
+        cs, cr = self.can_split(L.src), self.can_split(L.rcv)
+        mixed = self.contacts.mixed(L.rcv) & cr
+        split_src = cs & ((nd.radius[L.src] >= nd.radius[L.rcv]) | ~cr) & ~mixed
+        need = ((self.errors(L) > self.eps) & (cs | cr)) | mixed
+        return need, split_src
+
     def refine(self, src: np.ndarray, rcv: np.ndarray, cancel=None) -> Links:
         """Evaluate candidate links, keep those within the bound, split the rest down to their children."""
         nd = self.nodes
@@ -233,11 +246,7 @@ class HierarchicalRadiosity:
         total = len(self.links)
         while len(src):
             L = self.evaluator.evaluate(src, rcv)
-            err = self.errors(L)
-            cs, cr = self.can_split(L.src), self.can_split(L.rcv)
-            bigger = nd.radius[L.src] >= nd.radius[L.rcv]
-            split_src = cs & (bigger | ~cr)
-            need = (err > self.eps) & (cs | cr)
+            need, split_src = self._to_refine(L)
             kept.append(L.take(~need & (L.coef.max(axis=1) > 0)))
             total += int((~need).sum())
             if total > MAX_LINKS:
@@ -387,12 +396,10 @@ class HierarchicalRadiosity:
             refined = len(self.links)
         else:
             self.refine_lights()
-            err = self.errors(self.links)
-            need = (err > self.eps) & (self.can_split(self.links.src) | self.can_split(self.links.rcv))
+            need, split_src = self._to_refine(self.links)
             refined = int(need.sum())
             if refined:
-                L = self.links.take(need)
-                split_src = self.can_split(L.src) & ((nd.radius[L.src] >= nd.radius[L.rcv]) | ~self.can_split(L.rcv))
+                L, split_src = self.links.take(need), split_src[need]
                 ends = np.where(split_src, L.src, L.rcv)
                 nd.split(ends[~nd.cluster[ends]])
                 self._grow_state()

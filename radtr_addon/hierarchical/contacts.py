@@ -1,0 +1,71 @@
+"""Surfaces with another close in front of part of them: a wall behind a cabinet, the floor
+under a table, a ceiling over a lamp hung 1 cm below it.
+
+The light reaching such a part is not what the rest of the surface gets, and a link's few
+receiver points on a large element do not see it (ten points on a 5 m wall miss the strip
+behind a sofa 5 cm away): many links, each within epsilon, leak light there together. So
+for each input triangle the distance h to the first surface along its normal is taken at
+the centroids of a grid of cells that are the element tree's own (4^g cells in the order
+of ``Nodes.split``'s children, g up to the tree's depth, finer on larger triangles). An
+element is *mixed* when among the cells it covers some have a surface nearer than its
+radius in front and some do not; every link into a mixed element is refined at the
+receiver, down to elements wholly in the gap or wholly out of it (or the deepest level).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .quadratic import _CHILDREN
+
+#: Grid cells about this fraction of the scene's diagonal across (radius), at most.
+CELL_FRACTION = 1 / 200
+
+
+def cell_centroids(g: int) -> np.ndarray:
+    """Barycentric centroids (4^g, 3) of the level-g cells, cell p's children at 4p .. 4p + 3."""
+    corners = np.eye(3)[None]                                  # (cells, 3 corners, 3)
+    maps = np.array([np.array(c) for c in _CHILDREN])          # (4, 3, 3) child corners in parent bary
+    for _ in range(g):
+        corners = np.einsum("sij,pjk->psik", maps, corners).reshape(-1, 3, 3)
+    return corners.mean(axis=1)
+
+
+class Proximity:
+    """Per input triangle, h at its grid cells; ``mixed(ids)`` for elements (see module)."""
+
+    def __init__(self, nodes, caster, max_level: int):
+        s = nodes.scene
+        self.nodes = nodes
+        diag = float(np.linalg.norm(np.ptp(s.vertices, axis=0))) or 1.0
+        r0 = nodes.radius[nodes.element_root]
+        self.g = np.clip(np.ceil(np.log2(np.maximum(r0 / (CELL_FRACTION * diag), 1.0))), 0, max_level).astype(int)
+        self.offset = np.concatenate([[0], np.cumsum(4 ** self.g)])
+        self.h = np.empty(self.offset[-1])
+        tri = s.vertices[s.triangles]
+        for g in np.unique(self.g):
+            ts = np.flatnonzero(self.g == g)
+            pts = np.einsum("pk,tkc->tpc", cell_centroids(int(g)), tri[ts])
+            n = np.repeat(s.normals[ts], 4 ** g, axis=0)
+            h = caster.distance(pts.reshape(-1, 3) + caster.epsilon * n, n)
+            self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = h
+        self._known = np.zeros(0, np.int8)                      # per node: 0 unknown, 1 no, 2 mixed
+
+    def mixed(self, ids: np.ndarray) -> np.ndarray:
+        """Whether each node of ``ids`` is a mixed element (clusters never are)."""
+        nd = self.nodes
+        if len(self._known) < nd.size:
+            self._known = np.concatenate([self._known, np.zeros(nd.size - len(self._known), np.int8)])
+        todo = np.unique(ids[self._known[ids] == 0])
+        if len(todo):
+            out = np.ones(len(todo), np.int8)
+            el = ~nd.cluster[todo]
+            t, lv = nd.root[todo], nd.level[todo]
+            k = np.where(el, self.g[t] - lv, 0)                  # cell levels below the element
+            for depth in np.unique(k[k > 0]):
+                sel = np.flatnonzero(k == depth)
+                e = todo[sel]
+                first = self.offset[nd.root[e]] + nd.path[e] * 4 ** depth
+                near = self.h[first[:, None] + np.arange(4 ** depth)] < nd.radius[e][:, None]
+                out[sel] = np.where(near.any(axis=1) & ~near.all(axis=1), 2, 1)
+            self._known[todo] = out
+        return self._known[ids] == 2
