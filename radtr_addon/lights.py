@@ -170,15 +170,18 @@ def visibility(light: Light, points: np.ndarray, normals: np.ndarray, caster, sa
                                                                       + np.sin(phi)[:, None] * b))
         origins = np.repeat(points, len(dirs), axis=0)
         d = np.tile(dirs, (len(points), 1))
-        dist = np.full(len(d), 1e30)
+        clear = caster.reaches(origins + caster.epsilon * d, d)
     else:
         targets = _sample_points(light, samples)
         d = targets[None] - points[:, None]
-        dist = np.linalg.norm(d, axis=-1).ravel()
-        d = d.reshape(-1, 3) / np.maximum(dist, 1e-300)[:, None]
+        d = (d / np.maximum(np.linalg.norm(d, axis=-1), 1e-300)[..., None]).reshape(-1, 3)
         origins = np.repeat(points, len(targets), axis=0)
-        dist = dist * (1 - 1e-5)
-    clear = caster.reaches(origins + caster.epsilon * d, d, dist)
+        normal = None
+        if light.kind == "AREA":
+            t = _fan(light.polygon())[0]
+            normal = np.cross(t[1] - t[0], t[2] - t[0])
+            normal = normal / np.linalg.norm(normal)
+        clear = caster.clear_between(origins, np.tile(targets, (len(points), 1)), target_normals=normal)
     above = (np.einsum("ij,ij->i", d, np.repeat(normals, len(d) // len(points), axis=0)) > 0)
     seen = (clear & above).reshape(len(points), -1).sum(axis=1)
     return seen / np.maximum(above.reshape(len(points), -1).sum(axis=1), 1)

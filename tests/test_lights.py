@@ -150,3 +150,31 @@ def test_environment_image_lookup_follows_cycles_mapping():
     d = np.array([[0, 0, 1.0], [0, 0, -1.0], [0.0, -1, 0.1], [0.0, 1, 0.1]])
     got = f(d)
     assert got[0, 0] == 1 and got[1, 0] == 0 and got[2, 1] == 2 and got[3, 1] != 2
+
+
+@pytest.mark.parametrize("scale", [1e-8, 1.0, 1e8])
+def test_the_back_of_an_emitter_lights_a_ceiling_1_mm_above_it_at_any_scale(scale):
+    """A two-sided lamp (0.5 m square, exitance E) 1 mm under a ceiling, in a 4 m room: the
+    ceiling above it gets E x F from the lamp's back, F the closed form (0.99 here), whatever
+    the units; shadow rays must not end inside the lamp they aim at."""
+    ceiling = plane(half=2.0, cells=32, z=0.0)
+    ceiling.triangles = ceiling.triangles[:, ::-1].copy()          # faces down
+    lamp = np.array([[-0.25, -0.25, -1e-3], [0.25, -0.25, -1e-3], [0.25, 0.25, -1e-3]])
+    lamp2 = np.array([[-0.25, -0.25, -1e-3], [0.25, 0.25, -1e-3], [-0.25, 0.25, -1e-3]])
+    floor = np.array([[-2, -2, -4.0], [2, -2, -4.0], [2, 2, -4.0]])
+    V = np.vstack([ceiling.vertices, lamp, lamp2, floor]) * scale
+    T = np.vstack([ceiling.triangles, np.arange(3) + len(ceiling.vertices), np.arange(3, 6) + len(ceiling.vertices),
+                   np.arange(6, 9) + len(ceiling.vertices)])
+    scene = PatchScene(V, T, 0.5, 0.0, 0, 0)
+    E = np.array([10.0, 10.0, 10.0])
+    # the lamp faces down (its front); its back faces the ceiling
+    backs = [Light.back_of(f"back {k}", t[::-1] * scale, E) for k, t in enumerate((lamp, lamp2))]
+    H, _ = direct_irradiance(scene, backs)
+    corners = scene.vertices[scene.triangles[:len(ceiling.triangles)], :2]
+    above = np.flatnonzero(np.abs(corners).max(axis=(1, 2)) < 0.2 * scale)
+    pts = np.einsum("pc,ncd->npd", PATCH_POINTS, scene.vertices[scene.triangles[above]])
+    square = np.vstack([lamp[:2], lamp2[1:]]) * scale
+    down = np.array([0, 0, -1.0])
+    exact = np.array([[point_to_polygon(p, down, square) for p in patch] for patch in pts]).mean(axis=1)
+    assert exact.min() > 0.98 and len(above) == 8
+    np.testing.assert_allclose(H[above, 0], 10.0 * exact, rtol=0.01)

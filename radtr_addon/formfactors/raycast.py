@@ -132,6 +132,24 @@ class EmbreeRays:
         self.cast += len(origins)
         return self._embree.run(self._local(origins), np.asarray(dirs, np.float32)).astype(np.int64)
 
+    def clear_between(self, origins: np.ndarray, targets: np.ndarray, origin_normals=None,
+                       target_normals=None) -> np.ndarray:
+        """Whether nothing is in the way (k,) between ``origins`` and ``targets`` (k, 3) on
+        surfaces: each end is lifted ``epsilon`` off its surface (along its normal, towards
+        the other end, where given), the ray leaves ``epsilon`` off its origin and stops
+        ``2 epsilon`` before its target, so neither end's own surface counts however near
+        the two are (a ceiling 1 mm over a lamp, reached at a grazing angle)."""
+        origins, targets = np.array(origins, float), np.array(targets, float)     # lifted below: copies
+        for end, other, n in ((origins, targets, origin_normals), (targets, origins, target_normals)):
+            if n is not None:
+                n = np.broadcast_to(n, end.shape)
+                side = np.where(np.einsum("...c,...c->...", other - end, n) >= 0, 1.0, -1.0)
+                end += self.epsilon * side[..., None] * n
+        d = targets - origins
+        dist = np.linalg.norm(d, axis=-1)
+        u = d / np.maximum(dist, 1e-300)[..., None]
+        return self.reaches(origins + self.epsilon * u, u, np.maximum(dist - 3 * self.epsilon, 0.0))
+
     def distance(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Distance (k,) along unit ``dirs`` from ``origins`` to the first surface, inf for none."""
         self.cast += len(origins)
@@ -158,11 +176,10 @@ class EmbreeRays:
         rng = np.random.default_rng((self.seed, int(j), 1))
         r1, r2 = (cells // m + rng.random(m * m)) / m, (cells % m + rng.random(m * m)) / m
         targets = triangle_points(self.tris[j], r1, r2)
-        d = targets - point
-        dist = np.linalg.norm(d, axis=1)
-        keep = dist > 0
-        d, dist = d[keep] / dist[keep, None], dist[keep]
-        return float(np.mean(self.reaches(np.broadcast_to(point, d.shape), d, dist * (1 - 1e-5)))) if len(d) else 0.0
+        targets = targets[np.linalg.norm(targets - point, axis=1) > 0]
+        if not len(targets):
+            return 0.0
+        return float(np.mean(self.clear_between(np.broadcast_to(point, targets.shape), targets)))
 
     def point_to_patch(self, point, normal, j: int, samples: int = 16) -> float:
         """Closed-form form factor from a differential area to patch j, times its visible fraction."""

@@ -204,7 +204,7 @@ class Evaluator:
         w = np.maximum(np.einsum("kmc,kc->km", d, n_r[li]), 0) * np.maximum(-np.einsum("kmc,kc->km", d, n_s[li]), 0)
         ki, mi = np.nonzero(w > 0)
         ok = np.zeros(w.shape)
-        ok[ki, mi] = self.caster.reaches(x[li, pi][ki], d[ki, mi], dist[ki, mi] * (1 - 1e-4))
+        ok[ki, mi] = self.caster.clear_between(x[li, pi][ki], targets[ki, mi], target_normals=n_s[li][ki])
         total = w.sum(axis=1)
         V[li, pi] = np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 1.0)
         return V
@@ -272,10 +272,8 @@ class Evaluator:
         d = d / np.maximum(dist, 1e-300)[..., None]
         w = np.maximum(np.einsum("lmc,lmc->lm", na, d), 0) * np.maximum(-np.einsum("lmc,lmc->lm", nb, d), 0)
         li, mi = np.nonzero(w > 0)
-        eps = self.caster.epsilon
         ok = np.zeros(w.shape)
-        ok[li, mi] = self.caster.reaches(a[li, mi] + eps * d[li, mi], d[li, mi],
-                                         np.maximum(dist[li, mi] * (1 - 1e-4) - eps, 0.0))
+        ok[li, mi] = self.caster.clear_between(a[li, mi], b[li, mi], na[li, mi], nb[li, mi])
         total = w.sum(axis=1)
         return np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 0.0)
 

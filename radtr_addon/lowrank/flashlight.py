@@ -36,7 +36,7 @@ def spot_irradiance(scene, spot: Spot, caster) -> np.ndarray:
     lit = np.flatnonzero((u @ direction >= np.cos(spot.angle)) & (cos_patch > 0) & (r > 0))
     H = np.zeros((scene.n, 3))
     if len(lit):
-        seen = lit[caster.reaches(np.broadcast_to(spot.position, (len(lit), 3)), u[lit], r[lit] * (1 - 1e-5))]
+        seen = lit[caster.clear_between(np.broadcast_to(spot.position, (len(lit), 3)), scene.centroids[lit])]
         H[seen] = np.outer(spot.intensity * cos_patch[seen] / r[seen] ** 2, spot.color)
     return H
 
