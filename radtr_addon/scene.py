@@ -78,8 +78,10 @@ class PatchScene:
         mat = self.material_names[self.material_index[i]] if self.material_names else "?"
         return f"patch {i} (object '{obj}', material '{mat}')"
 
-    def validate(self):
-        """Raise SceneError naming the first offending patch when the scene cannot be solved."""
+    def validate(self, emission_needed: bool = True):
+        """Raise SceneError naming the first offending patch when the scene cannot be solved
+        (``emission_needed``: also when nothing emits; a solve whose light comes from Light
+        objects or the World checks that itself)."""
         if self.n == 0:
             raise SceneError("the scene has no triangles to solve")
         if not np.all(np.isfinite(self.vertices)):
@@ -96,7 +98,7 @@ class PatchScene:
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 raise SceneError(f"{self.patch_label(i)}: {what} ({int(bad.sum())} patches in all)")
-        if not np.any(self.emission > 0):
+        if emission_needed and not np.any(self.emission > 0):
             raise SceneError("nothing emits light: give a material emission (Emission Strength > 0) "
                              "or add a light that reaches a surface")
 

@@ -184,3 +184,16 @@ def test_emitter_back_lights_what_is_behind_it_like_cycles(blend, two_sided):
     result = bpy.data.objects["Plane_radtr"]
     result.data.materials[0] = plane.data.materials[0]
     np.testing.assert_allclose(radtr, cycles_mean(bpy, result), rtol=0.03)
+
+
+def test_a_hierarchical_solve_lit_only_by_a_sun(blend):
+    """No emitting material, only a Light object: the hierarchical solve takes it (it used to
+    refuse the scene as unlit) and the plane gets rho S cos / pi."""
+    bpy = blend
+    add_plane(bpy)
+    props = dict(LIGHTS["SUN"])
+    add_light(bpy, "SUN", props.pop("location"), props.pop("rotation"), **props)
+    job = solve(bpy.context, Settings(solver="hierarchical", quality=0.1), log=lambda *_: None)
+    B = job.result.B
+    np.testing.assert_allclose(B / np.pi, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * 2.0 * math.cos(math.radians(25))
+                                                          / np.pi, B.shape), rtol=1e-6)

@@ -200,7 +200,7 @@ class SolveJob:
                 base.rho, warnings = varying_reflectance(self.extraction, subdivide(base, 0.0, 0),
                                                          settings.max_reflectance)
             self.stats.warnings += warnings
-        base.validate()
+        base.validate(emission_needed=False)        # the solver checks lights and the World too
         check_writable(base.emission, lambda i: f"emission of {base.patch_label(i)}")
         scene, shown = self._with_emitter_backs(base)
         with self._stage("lights"):

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..formfactors.raycast import triangle_points
 from . import quadratic
-from .nodes import DIRECTIONS, Nodes, nearest_direction
+from .nodes import DIRECTIONS, Nodes, direction_weights
 
 #: Barycentric points on a receiving element where its form factor is evaluated (``quadratic``).
 RECEIVER_POINTS = quadratic.POINTS
@@ -39,8 +39,8 @@ RECEIVER_POINTS = quadratic.POINTS
 SPREAD_SHARE = 0.25
 #: Shadow rays per receiver point (element links) and per cluster link.
 VISIBILITY_RAYS = 4
-#: Relative error of a cluster end's projected area read from the nearest of the 42 table
-#: directions (up to about 18 degrees away), counted in every cluster link's error estimate.
+#: Relative error of a cluster end's projected area read between the three table directions
+#: around the link's (faces about 30 degrees wide), counted in every cluster link's error estimate.
 DIRECTION_ERROR = 1.0
 #: Point pairs per link with a cluster end (visibility between random points of the ends).
 CLUSTER_RAYS = 16
@@ -57,12 +57,16 @@ class Links:
     coef: np.ndarray       # (L, 6) transfer per unit source term at the receiver's nodes
     spread: np.ndarray     # element pairs: the quadratic's miss at the centroid; cluster links: angular size
     occluded: np.ndarray   # unoccluded mean transfer where visibility is not complete, else 0
-    d: np.ndarray          # table direction of travel S -> R
+    d: np.ndarray          # (L, 3) table directions around the direction of travel S -> R
+    dw: np.ndarray         # (L, 3) their weights (``nodes.direction_weights``)
+
+    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw")
 
     @classmethod
     def empty(cls) -> "Links":
         z = np.zeros(0)
-        return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z, z.astype(np.int64))
+        return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z, np.zeros((0, 3), np.int64),
+                   np.zeros((0, 3)))
 
     @property
     def mean(self) -> np.ndarray:
@@ -73,13 +77,12 @@ class Links:
         return len(self.src)
 
     def take(self, keep: np.ndarray) -> "Links":
-        return Links(*(getattr(self, f)[keep] for f in ("src", "rcv", "coef", "spread", "occluded", "d")))
+        return Links(*(getattr(self, f)[keep] for f in Links.FIELDS))
 
     @staticmethod
     def concat(parts: list["Links"]) -> "Links":
         parts = [p for p in parts if len(p)] or [Links.empty()]
-        return Links(*(np.concatenate([getattr(p, f) for p in parts])
-                       for f in ("src", "rcv", "coef", "spread", "occluded", "d")))
+        return Links(*(np.concatenate([getattr(p, f) for p in parts]) for f in Links.FIELDS))
 
 
 def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
@@ -182,7 +185,7 @@ class Evaluator:
         # a shadow boundary may cross R (or every ray was blocked and the samples missed where
         # S shows): the unoccluded F bounds the light at stake
         occluded = np.where(((V < 1) & (F0 > 0)).any(axis=1), F0[:, :6] @ quadratic.MEAN, 0.0)
-        links = Links(s, r, F[:, :6], miss, occluded, self._direction(s, r))
+        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r))
         return links.take(F0.max(axis=1) > 0)
 
     def _visible_from_points(self, x: np.ndarray, n_r: np.ndarray, tri_s: np.ndarray, n_s: np.ndarray,
@@ -209,9 +212,9 @@ class Evaluator:
         V[li, pi] = np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 1.0)
         return V
 
-    def _direction(self, s, r) -> np.ndarray:
+    def _direction(self, s, r) -> tuple[np.ndarray, np.ndarray]:
         w = self.nodes.center[r] - self.nodes.center[s]
-        return nearest_direction(w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300))
+        return direction_weights(w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300))
 
     def _clusters(self, s: np.ndarray, r: np.ndarray) -> Links:
         nd = self.nodes
@@ -237,7 +240,7 @@ class Evaluator:
         free = np.where(far, geo / (np.pi * np.maximum(dist ** 2, 1e-300)), 0.0)
         spread = np.where(far, reach / np.maximum(dist, 1e-300) + DIRECTION_ERROR, np.inf)   # near or across: refine
         links = Links(s, r, np.repeat((V * free)[:, None], 6, axis=1), spread, np.where(V < 1, free, 0.0),
-                      nearest_direction(w))
+                      *direction_weights(w))
         return links
 
     def _points_on(self, nodes_: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:

@@ -34,9 +34,27 @@ def sphere_directions() -> np.ndarray:
 DIRECTIONS = sphere_directions()
 
 
-def nearest_direction(w: np.ndarray) -> np.ndarray:
-    """Index (m,) of the table direction nearest each unit vector of ``w`` (m, 3)."""
-    return np.argmax(w @ DIRECTIONS.T, axis=1)
+def _faces() -> tuple[np.ndarray, np.ndarray]:
+    """The 80 spherical triangles between the table directions, and the inverse (80, 3, 3)
+    of each one's corner matrix (columns the corners): its barycentric map."""
+    from scipy.spatial import ConvexHull
+
+    faces = ConvexHull(DIRECTIONS).simplices
+    return faces, np.linalg.inv(np.transpose(DIRECTIONS[faces], (0, 2, 1)))
+
+
+DIRECTION_FACES, _FACE_INVERSE = _faces()
+
+
+def direction_weights(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The three table directions (m, 3) around each unit vector of ``w`` (m, 3), and weights
+    (m, 3) summing to 1 (its gnomonic barycentric coordinates in their face): a quantity
+    tabled by direction is read between them, not from the nearest one (up to 18 degrees
+    away, where a face seen edge-on shows nothing)."""
+    lam = np.einsum("fij,mj->mfi", _FACE_INVERSE, w)                 # (m, 80, 3)
+    face = np.argmax(lam.min(axis=2), axis=1)
+    lam = np.maximum(lam[np.arange(len(w)), face], 0.0)
+    return DIRECTION_FACES[face], lam / np.maximum(lam.sum(axis=1, keepdims=True), 1e-300)
 
 
 class Nodes:

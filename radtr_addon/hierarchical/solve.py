@@ -30,7 +30,7 @@ from ..solvers.result import SolveResult
 from . import quadratic
 from .contacts import Proximity
 from .links import Evaluator, Links, direction_cosines, expand
-from .nodes import DIRECTIONS, Nodes, nearest_direction
+from .nodes import DIRECTIONS, Nodes
 
 #: Links held at most (about 100 bytes each), refused beyond with advice.
 MAX_LINKS = 20_000_000
@@ -131,7 +131,6 @@ class HierarchicalRadiosity:
         self.contacts = Proximity(nd, self.caster, s.max_level)
         self.size0 = nd.size                                     # cluster tree nodes
         self.proj_root = scene.areas[:, None] * np.maximum(scene.normals @ DIRECTIONS.T, 0.0)
-        self.opposite = nearest_direction(-DIRECTIONS)
         self.cos_root = direction_cosines(scene.normals)
         rows = nd.cluster_row
         depth = np.full(self.size0, -1)
@@ -201,7 +200,7 @@ class HierarchicalRadiosity:
         nd = self.nodes
         src, rcv = L.src, L.rcv
         cs, cr = nd.cluster[src], nd.cluster[rcv]
-        term = self._source_term(L)
+        term = self._source_term(L, bound=True)
         rho = nd.rho[rcv]
         rho[cr] = nd.rho_max[rcv[cr], None]
         err = np.zeros(len(L))
@@ -219,13 +218,16 @@ class HierarchicalRadiosity:
                               np.inf)
         return err
 
-    def _source_term(self, L: Links) -> np.ndarray:
-        """B of an element source; a cluster source's sum B A max(0, n.w) along the link's direction."""
+    def _source_term(self, L: Links, bound: bool = False) -> np.ndarray:
+        """B of an element source; a cluster source's sum B A max(0, n.w) along the link's
+        direction, read between the table's directions (``bound``: the largest of them, for
+        the error estimate)."""
         nd = self.nodes
         cs = nd.cluster[L.src]
         term = self.Bn[L.src].copy()
         if cs.any():
-            term[cs] = self.table[L.src[cs], L.d[cs]]
+            corners = self.table[L.src[cs, None], L.d[cs]]                 # (c, 3 directions, 3)
+            term[cs] = corners.max(axis=1) if bound else np.einsum("cj,cjk->ck", L.dw[cs], corners)
         return term
 
     # -- refinement ----------------------------------------------------------------------
@@ -342,8 +344,8 @@ class HierarchicalRadiosity:
         k = len(DIRECTIONS)
         D = np.zeros((self.size0 * k, 3))
         if cr.any():
-            idx = L.rcv[cr] * k + L.d[cr]
-            val = L.coef[cr, :1] * term[cr]
+            idx = (L.rcv[cr, None] * k + L.d[cr]).ravel()
+            val = (L.dw[cr, :, None] * (L.coef[cr, :1] * term[cr])[:, None, :]).reshape(-1, 3)
             D = np.stack([np.bincount(idx, weights=val[:, c], minlength=len(D)) for c in range(3)], axis=1)
         D = D.reshape(self.size0, k, 3).astype(float)
         for level in self.by_depth:                              # down the cluster tree
