@@ -241,29 +241,27 @@ def test_solve_operator_writes_adaptive_leaves(addon, blend):
     assert running["last"].leaves.n > coarse
 
 
-def test_result_meshes_have_no_cracks_at_t_vertices():
-    """Every vertex of a result mesh that lies inside an edge of one of its triangles (a
-    T-vertex, found here by geometry) carries the value the triangle's linear colours give
-    there, so shading has no cracks; the floor's shadow makes many such vertices."""
+def test_result_meshes_meet_vertex_to_vertex():
+    """Where a leaf's neighbour split, the leaf is cut at the new vertices: no vertex of a
+    result mesh lies inside an edge of one of its triangles (where linear colours would
+    crack), though leaves of many sizes meet (the floor's shadow), and the cut triangles
+    still cover each leaf exactly (the floor's area)."""
     from radtr_addon.reconstruct import mesh_part
 
     scene, _ = box_on_floor()
     hr, r = run(scene, quality=0.01)
     leaves = r.leaves
     part = mesh_part(leaves, np.flatnonzero(leaves.object_index == 0))
-    values = r.mesh_vertex_values(part)[:, 0]
     P = leaves.vertices[part.vertex_ids]
-    checked = 0
+    areas = leaves.areas[part.patches]
+    assert areas.max() > 4 * areas.min()
+    assert areas.sum() == pytest.approx(16.0, rel=1e-12)                # the 4 x 4 floor
     for tri in part.local:
         for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])):
             d = P[b] - P[a]
             t = (P - P[a]) @ d / (d @ d)
             off = np.linalg.norm(P - P[a] - t[:, None] * d, axis=1)
-            inside = np.flatnonzero((t > 1e-9) & (t < 1 - 1e-9) & (off < 1e-9))
-            expected = values[a] + t[inside] * (values[b] - values[a])
-            np.testing.assert_allclose(values[inside], expected, rtol=1e-9, atol=1e-12)
-            checked += len(inside)
-    assert checked > 20
+            assert not np.any((t > 1e-9) & (t < 1 - 1e-9) & (off < 1e-9 * np.sqrt(d @ d)))
 
 
 def test_result_meshes_split_vertices_at_creases_only():

@@ -197,3 +197,32 @@ def test_a_hierarchical_solve_lit_only_by_a_sun(blend):
     B = job.result.B
     np.testing.assert_allclose(B / np.pi, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * 2.0 * math.cos(math.radians(25))
                                                           / np.pi, B.shape), rtol=1e-6)
+
+
+def test_hierarchical_vertex_colours_take_a_sun_at_the_vertex(blend):
+    """A black square hides part of a plane from a sun straight above: every written vertex
+    colour away from the shadow's edge is rho S (lit) or 0 (in shadow) exactly, the light at
+    the vertex itself, not the mean over the leaves around it."""
+    bpy = blend
+    add_plane(bpy)
+    bpy.ops.mesh.primitive_plane_add(size=0.5, location=(0.13, 0.07, 1.0))
+    blocker = bpy.context.active_object
+    black = bpy.data.materials.new("black")
+    black.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0, 0, 0, 1)
+    blocker.data.materials.append(black)
+    add_light(bpy, "SUN", (0, 0, 3), energy=2.0, angle=0.0)
+    solve(bpy.context, Settings(solver="hierarchical", quality=0.03), log=lambda *_: None)
+    mesh = bpy.data.objects["Plane_radtr"].data
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    col = np.empty(len(mesh.vertices) * 4, dtype=np.float32)
+    mesh.color_attributes["radtr_radiosity"].data.foreach_get("color", col)
+    B = col.reshape(-1, 4)[:, :3].astype(float)
+    x, y = co[:, 0] - 0.13, co[:, 1] - 0.07
+    edge = np.minimum(np.abs(np.abs(x) - 0.25), np.abs(np.abs(y) - 0.25))
+    inside = (np.abs(x) < 0.25) & (np.abs(y) < 0.25)
+    far = edge > 0.02
+    assert inside[far].sum() > 3 and (~inside[far]).sum() > 3
+    expected = np.where(inside[:, None], 0.0, np.array([0.8, 0.6, 0.4]) * 2.0)
+    np.testing.assert_allclose(B[far], expected[far], rtol=1e-5, atol=1e-6)

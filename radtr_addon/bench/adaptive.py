@@ -108,7 +108,7 @@ def scene_rows(scene: str, quick: bool) -> tuple[list[dict], list[dict]]:
         cy_err = [rel_rms(bakes[s][0], reference) for s in curve_spp]
         cy_s = [bakes[s][1] for s in curve_spp]
         spp, cycles_s = crossing(list(curve_spp), cy_err, cy_s, error)
-        n = job.leaves.n
+        n = job.adaptive.leaf_count if options["solver"] == "hierarchical" else job.leaves.n
         links = job.adaptive.links if options["solver"] == "hierarchical" else n * n
         stages = {k: round(v, 2) for k, v in job.stats.seconds.items() if v >= 0.005}
         rows.append({"scene": scene, "config": label, "leaves": n, "links": links, "n^2": n * n,

@@ -26,8 +26,8 @@ from .extract import extract, source_objects
 from .lights import scene_lights, world_radiance
 from .write import check_replaceable, check_writable, write_results
 
-#: Cosine rays per element that sample the World in a hierarchical solve.
-SKY_RAYS = 256
+#: Cosine rays per point (four an element) that sample the World in a hierarchical solve.
+SKY_RAYS = 64
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
 AUTO_PATCHES = 2000
 #: Peak bytes per Embree ray in flight (a form-factor row or a vertex gather; measured).
@@ -228,10 +228,14 @@ class SolveJob:
         return scene, np.arange(scene.n) < base.n
 
     def _external_light(self, scene):
-        """``external(tris, normals)``: irradiance of the Light objects and the World at the
-        ``PATCH_POINTS`` of elements, or None when there are none."""
+        """``external(tris, normals, bary=PATCH_POINTS)``: irradiance (m, points, 3) of the
+        Light objects and the World at barycentric points of elements (the World by
+        ``SKY_RAYS`` cosine rays a point), each moved ``INSET`` towards the element's centre
+        (a corner on the line where a wall meets the ceiling would see out past it), or None
+        when there are none."""
         from ..formfactors.raycast import EmbreeRays
         from ..lights import PATCH_POINTS, irradiance_at
+        from ..reconstruct import INSET
 
         lights, warnings = scene_lights(self.bl_scene, self.view_layer)
         sky, sky_warnings = world_radiance(self.bl_scene)
@@ -241,18 +245,20 @@ class SolveJob:
         self.lights = lights
         if not lights and sky is None:
             return None
-        caster = EmbreeRays(scene, SKY_RAYS)                   # rays per element for the World
+        caster = EmbreeRays(scene, SKY_RAYS)
 
-        def external(tris, normals):
-            k = len(PATCH_POINTS)
+        def external(tris, normals, bary=PATCH_POINTS):
+            k = len(bary)
             n = np.repeat(normals, k, axis=0)
-            points = np.einsum("pc,ncd->npd", PATCH_POINTS, tris).reshape(-1, 3) + caster.epsilon * n
+            on = np.einsum("pc,ncd->npd", bary, tris)                     # (m, k, 3)
+            on += INSET * (tris.mean(axis=1)[:, None] - on)
             H = np.zeros((len(tris), k, 3))
             if lights:
-                H += irradiance_at(points, n, lights, caster)[0].reshape(len(tris), k, 3)
-            if sky is not None:
-                part = PatchScene(tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3), 0.0, 0.0, 0, 0)
-                H += sky_irradiance(part, sky, caster=caster)[:, None, :]
+                H += irradiance_at(on.reshape(-1, 3) + caster.epsilon * n, n, lights, caster)[0].reshape(H.shape)
+            if sky is not None:                                           # a tiny triangle about each point
+                small = on[:, :, None] + 1e-3 * (tris[:, None] - on[:, :, None])
+                part = PatchScene(small.reshape(-1, 3), np.arange(3 * len(n)).reshape(-1, 3), 0.0, 0.0, 0, 0)
+                H += sky_irradiance(part, sky, caster=caster).reshape(H.shape)
             return H
         return external
 
@@ -351,7 +357,7 @@ class SolveJob:
         if self.settings.solver == "hierarchical":
             self.adaptive, self.result = r, r.result
             self.leaves, r = r.leaves, r.result
-            self.stats.patches = self.leaves.n
+            self.stats.patches = self.adaptive.leaf_count
             if not self.settings.gather_rays:
                 vertices = self.adaptive.mesh_vertex_values
         self.stats.seconds["form_factors"] = r.seconds["form_factors"]
@@ -381,7 +387,7 @@ class SolveJob:
         inst = f" ({self.instances:,} instances)" if self.instances else ""
         if r.method == "hierarchical":
             inst += f" ({self.adaptive.links:,} links, {len(self.adaptive.rounds)} rounds)"
-        return (f"{self.leaves.n:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
+        return (f"{self.stats.patches:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
                 f"{state}; energy balance error {r.balance_error():.1e}")
 
 

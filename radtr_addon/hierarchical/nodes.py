@@ -32,6 +32,9 @@ def sphere_directions() -> np.ndarray:
 
 
 DIRECTIONS = sphere_directions()
+#: Cell levels whose centroids sample outside light on an element, by its level below its input
+#: triangle (64 points on an input triangle, 16 on its children, then 4).
+LIGHT_CELLS = np.array([3, 2, 1])
 
 
 def _faces() -> tuple[np.ndarray, np.ndarray]:
@@ -184,14 +187,24 @@ class Nodes:
     # -- elements ------------------------------------------------------------------------
     def init_light(self, ids: np.ndarray):
         """E, H_ext and H_spread of new elements ``ids``: emission plus the reflected external
-        light, its mean over ``external``'s points on each element, and its spread there."""
+        light, its mean over points of each element, and its spread there. The points are the
+        centroids of the element's cells ``LIGHT_CELLS`` levels down (fewer on small ones), so
+        a shadow that misses four points of a large input triangle still splits it."""
         s = self.scene
         self.E[ids] = s.emission[self.root[ids]]
-        if self.external is not None and len(ids):
-            H = self.external(self.tri[ids], self.normal[ids])          # (m, points, 3)
-            self.H_ext[ids] = H.mean(axis=1)
-            self.H_spread[ids] = (self.rho[ids] * (H.max(axis=1) - H.min(axis=1))).max(axis=1)
-            self.E[ids] += self.rho[ids] * self.H_ext[ids]
+        if self.external is None or not len(ids):
+            return
+        from .contacts import CELL_FRACTION, cell_centroids
+
+        diag = float(np.linalg.norm(np.ptp(s.vertices, axis=0))) or 1.0
+        fit = np.ceil(np.log2(np.maximum(self.radius[ids] / (CELL_FRACTION * diag), 1.0)))
+        depth = np.clip(np.minimum(LIGHT_CELLS[np.minimum(self.level[ids], len(LIGHT_CELLS) - 1)], fit), 1, None)
+        for g in np.unique(depth).astype(int):
+            sel = ids[depth == g]
+            H = self.external(self.tri[sel], self.normal[sel], cell_centroids(g))     # (m, points, 3)
+            self.H_ext[sel] = H.mean(axis=1)
+            self.H_spread[sel] = (self.rho[sel] * (H.max(axis=1) - H.min(axis=1))).max(axis=1)
+        self.E[ids] += self.rho[ids] * self.H_ext[ids]
 
     def split(self, ids: np.ndarray) -> np.ndarray:
         """Give the elements ``ids`` (without children) their four children; returns the new ids."""

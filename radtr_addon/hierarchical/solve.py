@@ -41,7 +41,7 @@ class HierarchicalSettings:
     """The knobs: ``epsilon`` (Quality) trades time for error; the rest bound the work."""
 
     epsilon: float = 1e-2          # link error bound / the scene's mean emitted exitance
-    max_level: int = 6             # element splits below an input triangle
+    max_level: int = 8             # element splits below an input triangle
     min_area: float = 1e-6         # smallest element, as a fraction of the scene's area
     tolerance: float = 1e-4        # Jacobi stop: residual power / emitted
     max_rounds: int = 8
@@ -51,60 +51,63 @@ class HierarchicalSettings:
 
 @dataclass
 class HierarchicalResult:
-    """The adaptive leaves, their radiosity, and how the solve went."""
+    """The adaptive leaves (triangulated where a neighbour split: no T-vertices), their
+    radiosity, and how the solve went."""
 
-    leaves: PatchScene
+    leaves: PatchScene             # output triangles, each with its leaf's rho, E, B, H
     result: SolveResult
-    midpoint: dict                 # edge (lo << 32 | hi) -> midpoint vertex, for T-vertices
-    corner_B: np.ndarray           # (n, 3 corners, 3) radiosity at each leaf's corners (its quadratic)
+    leaf: np.ndarray               # (t,) the element each output triangle belongs to
+    corner_B: np.ndarray           # (t, 3 corners, 3) radiosity at each output triangle's corners
     links: int
     elements: int
     rounds: list = field(default_factory=list)   # per round: links, leaves, seconds
 
+    @property
+    def leaf_count(self) -> int:
+        return len(np.unique(self.leaf))
+
     def mesh_vertex_values(self, part) -> np.ndarray:
         """Radiosity (v, 3) at a result mesh's vertices (``reconstruct.MeshPart``): the area
-        mean of the leaves' own corner values there, then every T-vertex set on the line
-        between its edge's ends, so colours have no cracks. At a crease each side is its own."""
-        s = self.leaves
-        w = np.repeat(s.areas[part.patches], 3)
+        mean of its triangles' own corner values there (the leaves' quadratics and the outside
+        lights at the vertex); the triangles meet vertex to vertex, so colours have no cracks,
+        and at a crease each side is its own."""
+        w = np.repeat(self.leaves.areas[part.patches], 3)
         idx = part.local.ravel()
         n = len(part.vertex_ids)
         total = np.bincount(idx, weights=w, minlength=n)
         corner = self.corner_B[part.patches].reshape(-1, 3)
-        values = np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=n)
-                           for c in range(3)], axis=1) / np.maximum(total, 1e-300)[:, None]
-        for m, a, b in t_vertices(part, s.normals[part.patches], self.midpoint):
-            values[m] = 0.5 * (values[a] + values[b])
-        return values
+        return np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=n)
+                         for c in range(3)], axis=1) / np.maximum(total, 1e-300)[:, None]
 
 
-def t_vertices(part, normals: np.ndarray, midpoint: dict) -> list[tuple[int, int, int]]:
-    """(m, a, b) local vertices of ``part`` for every vertex m inside an edge (a, b) of one of
-    its leaves (facing ``normals``), m on the same side of any crease as the leaf, in the order
-    that sets ends before midpoints (a midpoint is made after its ends)."""
-    from ..reconstruct import CREASE_ANGLE
+def conforming(tris: np.ndarray, midpoint: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Leaves (t, 3 vertex ids) cut where a neighbour's split left a vertex inside one of their
+    edges (``midpoint``: edge (lo << 32 | hi) -> its midpoint): a fan from the opposite corner
+    when one edge has such vertices, from the centroid (a new vertex, -1 here) when more do.
+    Returns the triangles (k, 3), the leaf row of each, and whether a corner is the centroid."""
+    def inside(a: int, b: int) -> list[int]:
+        m = midpoint.get((min(a, b) << 32) + max(a, b))
+        return [] if m is None else inside(a, m) + [m] + inside(m, b)
 
-    copies: dict[int, list[int]] = {}
-    for k, v in enumerate(part.vertex_ids.tolist()):
-        copies.setdefault(v, []).append(k)
-    cos = np.cos(np.radians(CREASE_ANGLE))
-    loc = part.local
-    stack = [(int(loc[t, e]), int(loc[t, (e + 1) % 3]), t) for t in range(len(loc)) for e in range(3)]
-    out, seen = [], set()
-    vid = part.vertex_ids
-    while stack:
-        a, b, t = stack.pop()
-        va, vb = int(vid[a]), int(vid[b])
-        m = midpoint.get((min(va, vb) << 32) + max(va, vb))
-        if m is None or (a, b) in seen or (b, a) in seen:
+    out, rows = [], []
+    for row, (a, b, c) in enumerate(tris.tolist()):
+        edges = [inside(a, b), inside(b, c), inside(c, a)]
+        full = [n for n, e in enumerate(edges) if e]
+        if not full:
+            out.append((a, b, c))
+            rows.append(row)
             continue
-        seen.add((a, b))
-        side = [k for k in copies.get(m, ()) if part.normals[k] @ normals[t] >= cos]
-        if not side:
-            continue
-        out.append((vid[side[0]], side[0], a, b))
-        stack += [(a, side[0], t), (side[0], b, t)]
-    return [(m, a, b) for _, m, a, b in sorted(out)]
+        loop = [a, *edges[0], b, *edges[1], c, *edges[2]]
+        if len(full) == 1:
+            k = full[0]
+            corner = (c, a, b)[k]                       # opposite the cut edge
+            line = [(a, b, c)[k], *edges[k], (a, b, c)[(k + 1) % 3]]
+            out += [(corner, p, q) for p, q in zip(line[:-1], line[1:])]
+        else:
+            out += [(-1, p, q) for p, q in zip(loop, loop[1:] + loop[:1])]
+        rows += [row] * (len(out) - len(rows))
+    out = np.array(out, np.int64).reshape(-1, 3)
+    return out, np.array(rows, np.int64), out < 0
 
 
 class HierarchicalRadiosity:
@@ -174,7 +177,7 @@ class HierarchicalRadiosity:
         face), blocked (0: counted in escaped) and unshot (the residual), for the live readout."""
         if not hasattr(self, "B"):
             return {"absorbed": 0.0, "escaped": 0.0, "blocked": 0.0, "unshot": 1.0}
-        r = self.result().result
+        r = self.result(corners=False).result
         e = max(float(r.emitted.max()), 1e-300)
         return {k: float(getattr(r, k).max()) / e for k in ("absorbed", "escaped", "blocked", "unshot")}
 
@@ -459,8 +462,12 @@ class HierarchicalRadiosity:
             pass
         return self.result()
 
-    def result(self) -> HierarchicalResult:
-        """The shown leaves as a PatchScene with their B, H and the books."""
+    def result(self, corners: bool = True) -> HierarchicalResult:
+        """The shown leaves as a PatchScene with their B, H and the books. With ``corners``
+        (the written result) the leaves are cut at their T-vertices (``conforming``) and each
+        triangle's corners get the leaf's quadratic there and the outside lights (Light
+        objects, the World) at the corner itself, not their mean over the leaf, so a sun
+        patch's edge is as sharp at the vertices as the leaves allow."""
         nd, sc = self.nodes, self.scene
         leaves = self.leaf_ids
         roots = nd.root[leaves]
@@ -470,17 +477,45 @@ class HierarchicalRadiosity:
         received = (self.H * A[:, None]).sum(axis=0)
         leaving = (self.B * A[:, None]).sum(axis=0)
         unshot = ((nd.E[leaves] + nd.rho[leaves] * self.H - self.B) * A[:, None]).sum(axis=0)
-        show = self.shown[roots]
-        ids = leaves[show]
-        patches = PatchScene(nd.all_vertices(), nd.vids[ids], nd.rho[ids], nd.E[ids], sc.object_index[roots[show]],
-                             sc.material_index[roots[show]], list(sc.object_names), list(sc.material_names))
+        shown = np.flatnonzero(self.shown[roots])                   # rows of leaf_ids, B, H, H6
+        ids = leaves[shown]
+        verts = nd.all_vertices()
+        if corners:
+            tris, row, centre = conforming(nd.vids[ids], nd.midpoint)
+            fan = np.unique(row[centre.any(axis=1)])
+            new_id = np.full(len(ids), -1)
+            new_id[fan] = len(verts) + np.arange(len(fan))
+            tris = np.where(centre, new_id[row][:, None], tris)
+            verts = np.concatenate([verts, nd.tri[ids[fan]].mean(axis=1)])
+        else:
+            tris, row = nd.vids[ids], np.arange(len(ids))
+        leaf, at = ids[row], shown[row]
+        patches = PatchScene(verts, tris, nd.rho[leaf], nd.E[leaf], sc.object_index[nd.root[leaf]],
+                             sc.material_index[nd.root[leaf]], list(sc.object_names), list(sc.material_names))
         residual = self.history[-1] if self.history else 1.0
-        res = SolveResult(self.B[show], self.H[show], self.sweeps, residual <= self.settings.tolerance,
+        res = SolveResult(self.B[at], self.H[at], self.sweeps, residual <= self.settings.tolerance,
                           list(self.history), list(self.times),
                           {"form_factors": self.stage_seconds["refine"], "solve": self.stage_seconds["solve"],
                            "clusters": self.stage_seconds["clusters"]},
                           "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
-        corner_B = nd.E[ids][:, None] + nd.rho[ids][:, None] * np.einsum("ki,lic->lkc", quadratic.AT_CORNERS,
-                                                                          self.H6[show])
-        return HierarchicalResult(patches, res, dict(nd.midpoint), corner_B, len(self.links),
+        if corners:
+            P, T = verts[tris], nd.tri[leaf]                            # (k, 3 corners, 3), (k, 3, 3)
+            e = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], axis=1)
+            uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e)[:, None],
+                                 np.einsum("kic,kpc->kpi", e, P - T[:, None, 0])[..., None])[..., 0]
+            bary = np.concatenate([1 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)      # (k, 3, 3)
+            H = np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
+                          self.H6[at])
+            if nd.external is not None:
+                # the outside light at each corner: about a small triangle 1% of the way in
+                small = (P[:, :, None] + 0.01 * (T[:, None] - P[:, :, None])).reshape(-1, 3, 3)
+                H = H + nd.external(small, np.repeat(nd.normal[leaf], 3, axis=0),
+                                    np.full((1, 3), 1 / 3)).reshape(H.shape)
+                corner_B = sc.emission[nd.root[leaf]][:, None] + nd.rho[leaf][:, None] * H
+            else:
+                corner_B = nd.E[leaf][:, None] + nd.rho[leaf][:, None] * H
+        else:
+            corner_B = nd.E[leaf][:, None] + nd.rho[leaf][:, None] * np.einsum(
+                "ki,lic->lkc", quadratic.AT_CORNERS, self.H6[at])
+        return HierarchicalResult(patches, res, leaf, corner_B, len(self.links),
                                   int((~nd.cluster[:nd.size]).sum()), list(self.rounds))
