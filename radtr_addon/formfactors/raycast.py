@@ -150,11 +150,13 @@ class EmbreeRays:
         u = d / np.maximum(dist, 1e-300)[..., None]
         return self.reaches(origins + self.epsilon * u, u, np.maximum(dist - 3 * self.epsilon, 0.0))
 
-    def distance(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-        """Distance (k,) along unit ``dirs`` from ``origins`` to the first surface, inf for none."""
+    def first_hit(self, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (k,) along unit ``dirs`` from ``origins`` to the first surface (inf for
+        none) and its patch id (-1 for none)."""
         self.cast += len(origins)
-        t = self._embree.run(self._local(origins), np.asarray(dirs, np.float32), output=1)["tfar"]
-        return np.where(t < 1e36, t.astype(float) * self._unit, np.inf)
+        out = self._embree.run(self._local(origins), np.asarray(dirs, np.float32), output=1)
+        t, prim = out["tfar"], out["primID"].astype(np.int64)
+        return np.where(prim >= 0, t.astype(float) * self._unit, np.inf), prim
 
     def _local(self, points: np.ndarray) -> np.ndarray:
         """``points`` in the frame Embree sees (float32)."""

@@ -6,9 +6,10 @@ receiver points on a large element do not see it (ten points on a 5 m wall miss 
 behind a sofa 5 cm away): many links, each within epsilon, leak light there together. So
 for each input triangle the distance h to the first surface along its normal is taken at
 the centroids of a grid of cells that are the element tree's own (4^g cells in the order
-of ``Nodes.split``'s children, g up to the tree's depth, finer on larger triangles). An
-element is *mixed* when among the cells it covers some have a surface nearer than its
-radius in front and some do not; every link into a mixed element is refined at the
+of ``Nodes.split``'s children, g up to the tree's depth, finer on larger triangles); h is 0
+where that surface shows its back (the cell is under a box, however tall). An
+element is *mixed* when among the cells it covers some have a surface near in front
+(``NEAR_SHARE``) and some do not; every link into a mixed element is refined at the
 receiver, down to elements wholly in the gap or wholly out of it (or the deepest level).
 """
 from __future__ import annotations
@@ -19,6 +20,10 @@ from .quadratic import _CHILDREN
 
 #: Grid cells about this fraction of the scene's diagonal across (radius), at most.
 CELL_FRACTION = 1 / 200
+#: A cell is near a surface in front when that surface is closer than the element's radius
+#: and than this share of the farthest any of the element's cells sees (in a room 2.4 m high
+#: a floor triangle 2.8 m across has the ceiling "near"; the floor under a box is nearer).
+NEAR_SHARE = 0.5
 
 
 def cell_centroids(g: int) -> np.ndarray:
@@ -30,8 +35,17 @@ def cell_centroids(g: int) -> np.ndarray:
     return corners.mean(axis=1)
 
 
+def near(h: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Which cells (m, c) of elements of ``radius`` (m,) have a surface near in front: closer
+    than the radius and than ``NEAR_SHARE`` of the farthest of the element's cells, or
+    showing its back (h 0)."""
+    return (h == 0) | (h < np.minimum(radius[:, None], NEAR_SHARE * h.max(axis=1, keepdims=True)))
+
+
 class Proximity:
-    """Per input triangle, h at its grid cells; ``mixed(ids)`` for elements (see module)."""
+    """Per input triangle, h at its grid cells; ``mixed(ids)`` for nodes (see module). A
+    cluster is mixed when any of its triangles has a cell near a surface: it hands light to
+    its triangles by their cosines alone, so the part of a wall behind a panel would get it."""
 
     def __init__(self, nodes, caster, max_level: int):
         s = nodes.scene
@@ -46,12 +60,22 @@ class Proximity:
             ts = np.flatnonzero(self.g == g)
             pts = np.einsum("pk,tkc->tpc", cell_centroids(int(g)), tri[ts])
             n = np.repeat(s.normals[ts], 4 ** g, axis=0)
-            h = caster.distance(pts.reshape(-1, 3) + caster.epsilon * n, n)
-            self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = h
-        self._known = np.zeros(0, np.int8)                      # per node: 0 unknown, 1 no, 2 mixed
+            h, hit = caster.first_hit(pts.reshape(-1, 3) + caster.epsilon * n, n)
+            back = (hit >= 0) & (np.einsum("kc,kc->k", s.normals[np.maximum(hit, 0)], n) > 0)
+            self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = np.where(back, 0.0, h)
+        touched = np.zeros(nodes.size, bool)
+        for g in np.unique(self.g):
+            ts = np.flatnonzero(self.g == g)
+            h = self.h[self.offset[ts][:, None] + np.arange(4 ** g)]
+            node = nodes.parent[nodes.element_root[ts[near(h, r0[ts]).any(axis=1)]]]
+            while len(node):
+                touched[node] = True
+                node = np.unique(nodes.parent[node])
+                node = node[node >= 0]
+        self._known = np.where(touched, 2, 0).astype(np.int8)     # per node: 0 unknown, 1 no, 2 mixed
 
     def mixed(self, ids: np.ndarray) -> np.ndarray:
-        """Whether each node of ``ids`` is a mixed element (clusters never are)."""
+        """Whether each node of ``ids`` is mixed (an element, or a cluster: see the class)."""
         nd = self.nodes
         if len(self._known) < nd.size:
             self._known = np.concatenate([self._known, np.zeros(nd.size - len(self._known), np.int8)])
@@ -65,7 +89,7 @@ class Proximity:
                 sel = np.flatnonzero(k == depth)
                 e = todo[sel]
                 first = self.offset[nd.root[e]] + nd.path[e] * 4 ** depth
-                near = self.h[first[:, None] + np.arange(4 ** depth)] < nd.radius[e][:, None]
-                out[sel] = np.where(near.any(axis=1) & ~near.all(axis=1), 2, 1)
+                close = near(self.h[first[:, None] + np.arange(4 ** depth)], nd.radius[e])
+                out[sel] = np.where(close.any(axis=1) & ~close.all(axis=1), 2, 1)
             self._known[todo] = out
         return self._known[ids] == 2

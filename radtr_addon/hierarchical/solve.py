@@ -504,8 +504,8 @@ class HierarchicalRadiosity:
             uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e)[:, None],
                                  np.einsum("kic,kpc->kpi", e, P - T[:, None, 0])[..., None])[..., 0]
             bary = np.concatenate([1 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)      # (k, 3, 3)
-            H = np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
-                          self.H6[at])
+            H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
+                                     self.H6[at]), 0.0)                   # a quadratic may dip below 0
             if nd.external is not None:
                 # the outside light at each corner: about a small triangle 1% of the way in
                 small = (P[:, :, None] + 0.01 * (T[:, None] - P[:, :, None])).reshape(-1, 3, 3)
