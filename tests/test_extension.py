@@ -17,7 +17,10 @@ INSTALL = textwrap.dedent("""
     for op in ("solve", "subdivide", "clear"):
         getattr(bpy.ops.radtr, op).get_rna_type()
     import scipy.sparse, embreex.rtcore_scene
+    import importlib
+    flashlight = importlib.import_module(enabled[0] + ".radtr_addon.blender.flashlight")
     print("RADTR-INSTALLED", enabled[0])
+    print("RADTR-CACHE", flashlight.cache_folder())
 """)
 
 
@@ -37,6 +40,9 @@ def test_zip_installs_and_registers(extension_zip, tmp_path):
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     line = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-INSTALLED"))
     assert "bl_ext.user_default.radtr" in line
+    # the low-rank cache lands in the extension's own user folder, not the temp folder
+    cache = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-CACHE")).split(" ", 1)[1]
+    assert cache.startswith(str(tmp_path / "user")) and cache.endswith("user_default/radtr/lowrank"), cache
     site = list((tmp_path / "user").glob("extensions/.local/lib/python3.*/site-packages"))
     assert site, "the extension's wheels were not installed"
     for package in ("scipy", "embreex", "pyopencl"):

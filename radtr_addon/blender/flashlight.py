@@ -146,13 +146,16 @@ def render_poses(bl_scene, flashlight, meshes: LiveMeshes, spots, out_dir) -> li
 
 
 def cache_folder():
-    """Where low-rank factors are kept: the extension's user folder, else Blender's temp folder."""
+    """Where low-rank factors are kept: the extension's user folder, else Blender's temp folder.
+    The extension's package is the one above ``radtr_addon`` ("bl_ext.<repository>.radtr"
+    when installed), not the first part of this one's name ("bl_ext")."""
     from pathlib import Path
 
     import bpy
 
+    extension = __package__.rpartition(".radtr_addon")[0]
     try:
-        return Path(bpy.utils.extension_path_user(__package__.split(".")[0], path="lowrank", create=True))
+        return Path(bpy.utils.extension_path_user(extension, path="lowrank", create=True))
     except (ValueError, KeyError, AttributeError):     # not running as an installed extension
         return Path(bpy.app.tempdir or "/tmp") / "radtr_lowrank"
 
