@@ -187,7 +187,7 @@ class Nodes:
     # -- elements ------------------------------------------------------------------------
     def init_light(self, ids: np.ndarray):
         """E, H_ext and H_spread of new elements ``ids``: emission plus the reflected external
-        light, its mean over points of each element, and its spread there. The points are the
+        light, its mean over points of each element, and its spread there (and at its corners). The points are the
         centroids of the element's cells ``LIGHT_CELLS`` levels down (fewer on small ones), so
         a shadow that misses four points of a large input triangle still splits it."""
         s = self.scene
@@ -201,8 +201,11 @@ class Nodes:
         depth = np.clip(np.minimum(LIGHT_CELLS[np.minimum(self.level[ids], len(LIGHT_CELLS) - 1)], fit), 1, None)
         for g in np.unique(depth).astype(int):
             sel = ids[depth == g]
-            H = self.external(self.tri[sel], self.normal[sel], cell_centroids(g))     # (m, points, 3)
-            self.H_ext[sel] = H.mean(axis=1)
+            cells = cell_centroids(g)
+            # the corners too: the vertex colours take the light there, so a leaf lit at a
+            # corner and dark at its cells is split, not drawn as a long bright wedge
+            H = self.external(self.tri[sel], self.normal[sel], np.vstack([cells, np.eye(3)]))
+            self.H_ext[sel] = H[:, :len(cells)].mean(axis=1)
             self.H_spread[sel] = (self.rho[sel] * (H.max(axis=1) - H.min(axis=1))).max(axis=1)
         self.E[ids] += self.rho[ids] * self.H_ext[ids]
 
