@@ -26,6 +26,12 @@ CELL_FRACTION = 1 / 200
 NEAR_SHARE = 0.5
 
 
+def cell_levels(radius: np.ndarray, diagonal: float) -> np.ndarray:
+    """Cell levels (m,) whose cells, on elements of ``radius``, are about ``CELL_FRACTION`` of
+    the scene's ``diagonal`` across (at least level 0)."""
+    return np.ceil(np.log2(np.maximum(radius / (CELL_FRACTION * diagonal), 1.0))).astype(int)
+
+
 def cell_centroids(g: int) -> np.ndarray:
     """Barycentric centroids (4^g, 3) of the level-g cells, cell p's children at 4p .. 4p + 3."""
     corners = np.eye(3)[None]                                  # (cells, 3 corners, 3)
@@ -50,9 +56,8 @@ class Proximity:
     def __init__(self, nodes, caster, max_level: int):
         s = nodes.scene
         self.nodes = nodes
-        diag = float(np.linalg.norm(np.ptp(s.vertices, axis=0))) or 1.0
         r0 = nodes.radius[nodes.element_root]
-        self.g = np.clip(np.ceil(np.log2(np.maximum(r0 / (CELL_FRACTION * diag), 1.0))), 0, max_level).astype(int)
+        self.g = np.minimum(cell_levels(r0, nodes.diagonal), max_level)
         self.offset = np.concatenate([[0], np.cumsum(4 ** self.g)])
         self.h = np.empty(self.offset[-1])
         tri = s.vertices[s.triangles]

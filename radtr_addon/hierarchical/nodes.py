@@ -74,6 +74,7 @@ class Nodes:
 
     def __init__(self, scene: PatchScene, external=None):
         self.scene, self.external = scene, external
+        self.diagonal = float(np.linalg.norm(np.ptp(scene.vertices, axis=0))) or 1.0
         self.vertices = [scene.vertices]
         self.n_vertices = len(scene.vertices)
         self.midpoint: dict[int, int] = {}
@@ -194,10 +195,9 @@ class Nodes:
         self.E[ids] = s.emission[self.root[ids]]
         if self.external is None or not len(ids):
             return
-        from .contacts import CELL_FRACTION, cell_centroids
+        from .contacts import cell_centroids, cell_levels
 
-        diag = float(np.linalg.norm(np.ptp(s.vertices, axis=0))) or 1.0
-        fit = np.ceil(np.log2(np.maximum(self.radius[ids] / (CELL_FRACTION * diag), 1.0)))
+        fit = cell_levels(self.radius[ids], self.diagonal)
         depth = np.clip(np.minimum(LIGHT_CELLS[np.minimum(self.level[ids], len(LIGHT_CELLS) - 1)], fit), 1, None)
         for g in np.unique(depth).astype(int):
             sel = ids[depth == g]
