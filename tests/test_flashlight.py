@@ -75,6 +75,39 @@ def test_the_flashlight_lights_the_box_and_follows_the_direct_solve(solved, tmp_
     for change in ({"angle": spot.angle * 1.5}, {"intensity": spot.intensity * 2}, {"color": np.array([1, 0.2, 0.2])}):
         other = type(spot)(**{**spot.__dict__, **change})
         assert not np.allclose(light.frame(other)[0], B)
+    # two spots at once: their light adds, and B follows a direct solve of both
+    second = default_spot(job.leaves, EYE + [0.1, 0, 0], [0.3, -1, -0.1])
+    both = light.emission([spot, second])
+    assert (both > E).any() and ((both != E).any(axis=1) & ~lit).sum() > 0   # the second lights more patches
+    B2, _ = light.frame([spot, second])
+    scene = PatchScene(s.vertices, s.triangles, s.rho, both, s.object_index, s.material_index)
+    direct = solve_system("direct", scene, job.rows, tol=1e-10).B
+    assert np.sqrt(np.mean((B2 - direct) ** 2) / np.mean(direct ** 2)) < 2 * level_error + 1e-3
+
+
+def test_grouped_shadow_rays_find_the_same_shadows_as_a_ray_per_patch(solved):
+    """Shadow groups (centre and corners rayed, every patch only where they disagree) give the
+    same lit patches as a ray per patch, for poses whose cone holds shadowed patches (the
+    boxes' shadows on the floor and walls), with fewer rays."""
+    from radtr_addon.bench.realtime import spots
+    from radtr_addon.formfactors.raycast import EmbreeRays
+    from radtr_addon.lowrank.flashlight import GROUP_PATCHES, ShadowGroups, spot_light
+
+    s = solved.leaves
+    groups = ShadowGroups.from_hierarchy(solved.hierarchy)
+    assert np.bincount(groups.group).max() <= GROUP_PATCHES and len(groups.samples) < s.n / 4
+    caster = EmbreeRays(s, 1)
+    for spot in spots(5, s):
+        no_shadows = type("NoShadows", (), {"clear_between": lambda self, a, b: np.ones(len(a), bool)})()
+        unshadowed, _ = spot_light(s, spot, no_shadows)
+        cast = caster.cast
+        single, _ = spot_light(s, spot, caster)
+        per_patch = caster.cast - cast
+        cast = caster.cast
+        grouped, _ = spot_light(s, spot, caster, groups)
+        assert len(single) < len(unshadowed)                   # the pose has shadows to find
+        assert np.array_equal(grouped, single)
+        assert caster.cast - cast < per_patch
 
 
 def colours(meshes):

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..lowrank import build
 from ..lowrank.backends import BACKENDS, unavailable
-from ..lowrank.flashlight import Flashlight, Spot
+from ..lowrank.flashlight import Flashlight, ShadowGroups, Spot, spot_irradiance
 
 SIZES = (3584, 10000, 50000, 100000)
 CLUSTERS = 1024
@@ -61,16 +61,28 @@ def read_bound_ms(U: np.ndarray) -> float:
     return 1e3 * best / 2                          # a copy reads and writes the same bytes
 
 
+def shadow_misses(light, poses) -> float:
+    """Largest fraction, over ``poses``, of a pose's lit patches whose grouped shadow test
+    differs from a ray per patch."""
+    worst = 0.0
+    for spot in poses:
+        grouped = spot_irradiance(light.scene, spot, light._caster, light.groups).any(axis=1)
+        single = spot_irradiance(light.scene, spot, light._caster).any(axis=1)
+        worst = max(worst, float((grouped != single).sum() / max(single.sum(), 1)))
+    return worst
+
+
 def frames(job, lowrank, backend: str, mono: bool) -> dict:
     from ..blender.flashlight import LiveMeshes
 
-    light = Flashlight(job.leaves, lowrank, backend)
+    light = Flashlight(job.leaves, lowrank, backend, groups=ShadowGroups.from_hierarchy(job.hierarchy))
     light.set_mono(mono)
     meshes = LiveMeshes(job.objects, job.leaves)
     poses = spots(FRAMES, job.leaves)
     light.frame(poses[0])                          # warm-up (kernel build, first allocation)
     stages = {"visibility": 0.0, "coefficients": 0.0, "product": 0.0, "write": 0.0}
     light.backend.seconds = {"coefficients": 0.0, "product": 0.0}
+    rays = light._caster.cast
     t_all = time.perf_counter()
     for spot in poses:
         B, s = light.frame(spot)
@@ -79,11 +91,13 @@ def frames(job, lowrank, backend: str, mono: bool) -> dict:
         meshes.write(B)
         stages["write"] += time.perf_counter() - t0
     total = time.perf_counter() - t_all
+    rays = (light._caster.cast - rays) / FRAMES
     stages.update(light.backend.seconds)
     row = {f"{k}_ms": round(1e3 * v / FRAMES, 2) for k, v in stages.items()}
     E0 = job.leaves.emission.mean(axis=1, keepdims=True) if mono else job.leaves.emission
     lit = [int((light.emission(spot) != E0).any(axis=1).sum()) for spot in poses]
     return {"backend": backend, "mode": "mono" if mono else "colour", "lit_min": min(lit), "lit_max": max(lit),
+            "rays": round(rays), "shadow_misses": round(shadow_misses(light, poses[::4]), 4),
             **row, "updates_s": round(FRAMES / total, 1)}
 
 

@@ -13,27 +13,39 @@ from collections import deque
 import numpy as np
 
 from ..lowrank.flashlight import Spot
-from ..reconstruct import VertexRadiosity, mesh_part
+from ..reconstruct import mesh_part
 
 
 class LiveMeshes:
-    """The result meshes of a solve (``SolveJob.objects``), written every frame."""
+    """The result meshes of a solve (``SolveJob.objects``), written every frame.
+
+    Each mesh's vertex means are one sparse product (float32) and its colour buffers are
+    kept between frames, so a frame is two products and two ``foreach_set`` a mesh."""
 
     def __init__(self, objects, leaves):
+        import scipy.sparse as sp
+
         self.leaves = leaves
         self.parts = []
         for obj in objects:
             mesh = obj.data
             ids = np.empty(len(mesh.polygons), dtype=np.int32)
             mesh.attributes["radtr_patch_index"].data.foreach_get("value", ids)
-            self.parts.append((mesh, mesh_part(leaves, ids.astype(np.int64))))
+            part = mesh_part(leaves, ids.astype(np.int64))
+            t = len(part.patches)
+            weights = sp.csr_matrix((np.repeat(leaves.areas[part.patches], 3),
+                                     (part.local.ravel(), np.repeat(np.arange(t), 3))),
+                                    shape=(len(part.vertex_ids), t))
+            weights = sp.diags(1.0 / np.maximum(np.asarray(weights.sum(axis=1)).ravel(), 1e-300)) @ weights
+            buffers = (np.ones((t, 4), dtype=np.float32), np.ones((len(part.vertex_ids), 4), dtype=np.float32))
+            self.parts.append((mesh, part, weights.astype(np.float32).tocsr(), buffers))
 
     def _attrs(self, mesh):
         return mesh.attributes["radtr_patch"], mesh.color_attributes["radtr_radiosity"]
 
     def snapshot(self) -> list:
         out = []
-        for mesh, _ in self.parts:
+        for mesh, *_ in self.parts:
             pair = []
             for attr in self._attrs(mesh):
                 buf = np.empty(len(attr.data) * 4, dtype=np.float32)
@@ -43,18 +55,19 @@ class LiveMeshes:
         return out
 
     def restore(self, snapshot: list):
-        for (mesh, _), pair in zip(self.parts, snapshot):
+        for (mesh, *_), pair in zip(self.parts, snapshot):
             for attr, buf in zip(self._attrs(mesh), pair):
                 attr.data.foreach_set("color", buf)
             mesh.update()
 
     def write(self, B: np.ndarray):
-        vertex = VertexRadiosity(self.leaves, B)
-        for mesh, part in self.parts:
-            patch, point = self._attrs(mesh)
-            for attr, values in ((patch, B[part.patches]), (point, vertex(part))):
-                rgba = np.ones((len(values), 4), dtype=np.float32)
-                rgba[:, :3] = values
+        """Patch colours and their area means at the vertices (as ``VertexRadiosity`` without
+        gather) into every mesh."""
+        B = np.asarray(B, dtype=np.float32)
+        for mesh, part, weights, (patch_rgba, point_rgba) in self.parts:
+            patch_rgba[:, :3] = B[part.patches]
+            point_rgba[:, :3] = weights @ patch_rgba[:, :3]
+            for attr, rgba in zip(self._attrs(mesh), (patch_rgba, point_rgba)):
                 attr.data.foreach_set("color", rgba.ravel())
             mesh.update()
 
@@ -166,7 +179,7 @@ def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_
     write to. Returns (flashlight, meshes, warnings, read_from_cache)."""
     from ..errors import SceneError, SettingsError
     from ..lowrank.cache import cached_build
-    from ..lowrank.flashlight import Flashlight
+    from ..lowrank.flashlight import Flashlight, ShadowGroups
 
     if not job.objects:
         raise SceneError("solve the scene first: the flashlight relights its result meshes")
@@ -179,5 +192,6 @@ def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_
     warnings: list[str] = []
     lowrank, hit = cached_build(job.hierarchy, job.rows, level, folder or cache_folder(),
                                 ff_label=job.rows.settings.label(), refine_to=refine_to, warnings=warnings)
-    light = Flashlight(job.leaves, lowrank, backend, user=user, warn=warnings.append)
+    light = Flashlight(job.leaves, lowrank, backend, user=user, warn=warnings.append,
+                       groups=ShadowGroups.from_hierarchy(job.hierarchy))
     return light, LiveMeshes(job.objects, job.leaves), warnings, hit
