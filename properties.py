@@ -1,6 +1,14 @@
 """RadTR settings stored on the Scene as ``scene.radtr``."""
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 
 from .radtr_addon.blender.pipeline import Settings
 
@@ -11,6 +19,24 @@ def _display_changed(self, context):
     from .radtr_addon.blender.write import set_display
 
     set_display(context.scene, self.display, self.exposure)
+
+
+def _scenario_weight_changed(self, context):
+    from .operators.solve import running
+    from .radtr_addon.blender.scenarios import show_blend
+
+    job = running["last"]
+    if job is not None and job.objects and running["job"] is None:
+        for w in show_blend(context.scene.radtr, job):
+            print(f"RadTR: {w}")
+
+
+class RADTR_PG_scenario(bpy.types.PropertyGroup):
+    """A stored lighting scenario (its B is the item's ``B`` custom property)."""
+
+    weight: FloatProperty(
+        name="Weight", default=0.0, min=0.0, soft_max=2.0, update=_scenario_weight_changed,
+        description="How much of this scenario's light the result meshes and the flashlight show")
 
 
 class RADTR_PG_settings(bpy.types.PropertyGroup):
@@ -127,6 +153,7 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Memory Budget (MB)", default=_D.cache_mb, min=1,
         description="Memory the form factors and the largest work arrays may take; larger work is "
                     "refused, with the size it needs, before it starts")
+    scenarios: CollectionProperty(type=RADTR_PG_scenario)
     mode: EnumProperty(
         name="Result", default=_D.mode,
         items=[("COPY", "Copies", "Subdivided copies in a 'RadTR' collection; sources hidden"),
@@ -145,7 +172,7 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                         cache_mb=self.cache_mb)
 
 
-_register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_settings,))
+_register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_scenario, RADTR_PG_settings))
 
 
 def register():

@@ -3,11 +3,13 @@ import bpy
 
 from .clear import RADTR_OT_clear
 from .flashlight import RADTR_OT_flashlight
+from .scenarios import RADTR_OT_scenario_add, RADTR_OT_scenario_remove
 from .solve import RADTR_OT_resume, RADTR_OT_solve
 from .subdivide import RADTR_OT_subdivide
 from .tools import RADTR_OT_load_vector, RADTR_OT_patch_view, RADTR_OT_toggle_emission, RADTR_OT_view_from_patch
 
-CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_resume, RADTR_OT_flashlight, RADTR_OT_patch_view,
-           RADTR_OT_view_from_patch, RADTR_OT_load_vector, RADTR_OT_toggle_emission, RADTR_OT_clear)
+CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_resume, RADTR_OT_flashlight, RADTR_OT_scenario_add,
+           RADTR_OT_scenario_remove, RADTR_OT_patch_view, RADTR_OT_view_from_patch, RADTR_OT_load_vector,
+           RADTR_OT_toggle_emission, RADTR_OT_clear)
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -3,6 +3,7 @@ the low-rank solve of the last Solve. The event handling lives in ``FlashlightSe
 import bpy
 
 from ..radtr_addon.blender.flashlight import FlashlightSession, default_spot, flashlight_for
+from ..radtr_addon.blender.scenarios import usable
 from ..radtr_addon.errors import RadTRError
 from .solve import running
 
@@ -38,7 +39,10 @@ class RADTR_OT_flashlight(bpy.types.Operator):
         except RadTRError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        for w in warnings:
+        scenarios, skipped = usable(s, running["last"])
+        if scenarios:
+            light.set_scenarios(scenarios)
+        for w in warnings + skipped:
             self.report({"WARNING"}, w)
         self.report({"INFO"}, f"RadTR: low-rank factors {'read from the cache' if hit else 'built'}")
         origin, direction = mouse_ray(context, event)

@@ -88,3 +88,24 @@ class RADTR_PT_main(bpy.types.Panel):
             col.prop(s, "split")
             if s.split == "uniform":
                 col.prop(s, "split_level")
+
+
+class RADTR_PT_scenarios(bpy.types.Panel):
+    """Stored lighting scenarios and their weights (a sub-panel)."""
+
+    bl_label = "Lighting Scenarios"
+    bl_idname = "RADTR_PT_scenarios"
+    bl_parent_id = "RADTR_PT_main"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "RadTR"
+
+    def draw(self, context):
+        s = context.scene.radtr
+        col = self.layout.column()
+        for i, item in enumerate(s.scenarios):
+            row = col.row(align=True)
+            row.prop(item, "name", text="")
+            row.prop(item, "weight", text="", slider=True)
+            row.operator("radtr.scenario_remove", text="", icon="X").index = i
+        col.operator("radtr.scenario_add", icon="ADD")

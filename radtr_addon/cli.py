@@ -140,32 +140,34 @@ def cmd_solve(args) -> int:
 
 
 def read_spots(path: str, scene) -> list:
-    """Spot poses from a JSON list of {position, direction, angle_deg, intensity, color}."""
+    """Poses from a JSON list: each a spot {position, direction, angle_deg, intensity, color}
+    or a list of such spots lighting at once. Returns one Spot or list of Spots a pose."""
     import json
 
     import numpy as np
 
     from .blender.flashlight import default_spot
 
-    try:
-        poses = json.loads(Path(path).read_text())
-        spots = []
-        for k, pose in enumerate(poses):
-            spot = default_spot(scene, pose["position"], pose["direction"])
-            spot.angle = np.radians(float(pose.get("angle_deg", np.degrees(spot.angle))))
-            spot.intensity = float(pose.get("intensity", spot.intensity))
-            spot.color = np.asarray(pose.get("color", spot.color), float)
-            spots.append(spot)
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise RadTRError(f"{path}: not a list of poses with position and direction ({exc})") from None
-    for k, spot in enumerate(spots):
+    def spot_of(entry):
+        spot = default_spot(scene, entry["position"], entry["direction"])
+        spot.angle = np.radians(float(entry.get("angle_deg", np.degrees(spot.angle))))
+        spot.intensity = float(entry.get("intensity", spot.intensity))
+        spot.color = np.asarray(entry.get("color", spot.color), float)
         values = np.concatenate([spot.position, spot.direction, spot.color, [spot.angle, spot.intensity]])
         if not np.isfinite(values).all() or spot.intensity < 0 or spot.color.min() < 0:
             raise RadTRError(f"{path}: pose {k} has a NaN, infinite or negative value (intensity "
                              f"{spot.intensity:g}, colour {spot.color.tolist()})")
-    if not spots:
+        return spot
+
+    try:
+        poses = []
+        for k, pose in enumerate(json.loads(Path(path).read_text())):
+            poses.append([spot_of(e) for e in pose] if isinstance(pose, list) else spot_of(pose))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise RadTRError(f"{path}: not a list of poses with position and direction ({exc})") from None
+    if not poses:
         raise RadTRError(f"{path}: no poses")
-    return spots
+    return poses
 
 
 def cmd_flashlight(args) -> int:
@@ -250,7 +252,9 @@ def main(argv=None) -> int:
     p.set_defaults(func=cmd_solve)
     f = sub.add_parser("flashlight", help="solve, then render one PNG per flashlight pose (low-rank)")
     f.add_argument("scene", help=".blend, .obj or bundled scene name")
-    f.add_argument("--poses", required=True, help="JSON list of {position, direction, angle_deg, intensity, color}")
+    f.add_argument("--poses", required=True,
+                   help="JSON list of poses: {position, direction, angle_deg, intensity, color}, or a list of "
+                        "them lighting at once")
     f.add_argument("--out-dir", default="out/flashlight", help="folder for the PNGs and the low-rank cache")
     f.add_argument("--level", type=int, default=1, help="hierarchy level of the low-rank clusters")
     f.add_argument("--refine-to", type=int, default=0,

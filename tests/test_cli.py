@@ -73,14 +73,17 @@ def test_bench_solvers_quick(tmp_path):
 
 def test_flashlight_poses_render_pngs_and_bad_poses_are_clear(tmp_path):
     poses = tmp_path / "poses.json"
-    poses.write_text(json.dumps([{"position": [0.278, -0.8, 0.273], "direction": [0, 1, -0.3]},
-                                 {"position": [0.278, -0.8, 0.273], "direction": [0.3, 1, 0], "angle_deg": 10,
-                                  "color": [1, 0.5, 0.2]}]))
+    eye = [0.278, 0.8, 0.273]                  # the Cornell camera, looking into the open box
+    first = {"position": eye, "direction": [0, -1, -0.3]}
+    second = {"position": eye, "direction": [0.3, -1, 0], "angle_deg": 10, "color": [1, 0.5, 0.2]}
+    poses.write_text(json.dumps([first, second, [first, second]]))
     args = ("--max-area", "0.004", "--levels", "2", "--method", "embree", "--rays", "64", "--tolerance", "0.01")
     out = run("flashlight", "cornell_box", "--poses", str(poses), "--out-dir", str(tmp_path / "f"), *args)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "built" in out.stdout
-    assert sorted(p.name for p in (tmp_path / "f").glob("*.png")) == ["flashlight_000.png", "flashlight_001.png"]
+    pngs = sorted((tmp_path / "f").glob("*.png"))
+    assert [p.name for p in pngs] == ["flashlight_000.png", "flashlight_001.png", "flashlight_002.png"]
+    assert len({p.read_bytes() for p in pngs}) == 3          # each pose lights, two spots at once a third way
     again = run("flashlight", "cornell_box", "--poses", str(poses), "--out-dir", str(tmp_path / "f"), *args)
     assert "read from the cache" in again.stdout
     poses.write_text('[{"position": [0, 0, 0]}]')

@@ -158,3 +158,71 @@ def test_batch_poses_render_one_png_each(solved, tmp_path):
     a, b = (p.read_bytes() for p in paths)
     assert a != b                                           # two poses that light, two pictures
     assert all(np.array_equal(a, b) for a, b in zip(colours(meshes), before))
+
+
+def test_lighting_scenarios_blend_under_the_flashlight_as_a_direct_solve_of_the_blend(solved, tmp_path):
+    """Two stored solves (the box's lamp, and a spot's light as a second lamp) blended 0.5 / 2
+    with a third spot on top: B equals a direct solve of 0.5 E1 + 2 E2 + rho H3 within the
+    level's error, and closer than the low-rank solve of all the light (0.018): only the spot's
+    light goes through the factors (measured 0.0008). A scenario of other patches is refused
+    by name."""
+    from radtr_addon.errors import SceneError
+    from radtr_addon.lowrank.flashlight import Scenario
+    from radtr_addon.scene import PatchScene
+    from radtr_addon.solvers import solve as solve_system
+
+    job, s = solved, solved.leaves
+    light, _, _, _ = flashlight_for(job, 2, folder=tmp_path)
+
+    def direct(E):
+        scene = PatchScene(s.vertices, s.triangles, s.rho, E, s.object_index, s.material_index)
+        return solve_system("direct", scene, job.rows, tol=1e-10).B
+
+    E2 = light.emission(default_spot(s, EYE, [0.3, -1, -0.3])) - s.emission
+    assert E2.sum() > 0
+    light.set_scenarios([Scenario("lamp", job.result.B, 0.5), Scenario("spot", direct(E2), 2.0)])
+    third = default_spot(s, EYE, [-0.3, -1, -0.2])
+    B, _ = light.frame(third)
+    E3 = light.emission(third)                          # the spot's light alone now
+    expected = direct(0.5 * s.emission + 2.0 * E2 + E3)
+    error = float(np.sqrt(np.mean((B - expected) ** 2) / np.mean(expected ** 2)))
+    print(f"blend + spot against a direct solve: {error:.4f}")
+    assert error < 0.005
+    with pytest.raises(SceneError, match="scenario 'other' has 10 patches"):
+        light.set_scenarios([Scenario("other", np.ones((10, 3)))])
+
+
+def test_stored_scenarios_blend_in_the_result_meshes_and_pins_add_spots(addon, solved, tmp_path):
+    import bpy
+
+    from radtr_addon.blender.scenarios import usable
+
+    running = addon.operators.solve.running
+    running["last"], job = solved, solved
+    try:
+        meshes = flashlight_for(job, 2, folder=tmp_path)[1]
+        before = colours(meshes)
+        settings = bpy.context.scene.radtr
+        assert bpy.ops.radtr.scenario_add(name="lamp") == {"FINISHED"}
+        item = settings.scenarios[-1]
+        assert item.name == "lamp" and item.weight == 0.0
+        item.weight = 2.0                                       # the update writes the blend
+        patch = np.asarray(meshes.snapshot()[0][0]).reshape(-1, 4)[:, :3]
+        part = meshes.parts[0][1]
+        np.testing.assert_allclose(patch, 2.0 * job.result.B[part.patches], rtol=1e-6)
+        item["key"] = "other patches"
+        scenarios, warnings = usable(settings, job)
+        assert not scenarios and "'lamp' was solved on other patches" in warnings[0]
+        assert bpy.ops.radtr.scenario_remove(index=0) == {"FINISHED"} and len(settings.scenarios) == 0
+        meshes.restore([list(pair) for pair in zip(before[::2], before[1::2])])
+        # P pins the spot: a second aim lights what the pinned one lights and more
+        light = flashlight_for(job, 2, folder=tmp_path)[0]
+        session = FlashlightSession(light, meshes, default_spot(job.leaves, EYE, [0.3, -1, -0.3]))
+        one = (light.emission(session.spot) != job.leaves.emission).any(axis=1).sum()
+        session.handle("P")
+        session.handle("MOUSEMOVE", ray=(EYE, np.array([-0.3, -1.0, -0.2])))
+        both = (light.emission([*session.pinned, session.spot]) != job.leaves.emission).any(axis=1).sum()
+        assert len(session.pinned) == 1 and both > one and "1 pinned" in session.header
+        session.handle("ESC")
+    finally:
+        running["last"] = None

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 
@@ -75,12 +76,14 @@ class LiveMeshes:
 class FlashlightSession:
     """What the flashlight does with each event. ``handle`` returns the modal result:
     mouse aims (``ray`` = (origin, direction)), +/- size, wheel intensity, C colour/mono,
-    left click keeps the light, Esc or right click restores the colours as they were."""
+    P pins a copy of the spot where it is (pinned spots go on lighting), left click keeps the
+    light, Esc or right click restores the colours as they were."""
 
     GROW = 1.2
 
     def __init__(self, flashlight, meshes: LiveMeshes, spot: Spot):
         self.flashlight, self.meshes, self.spot = flashlight, meshes, spot
+        self.pinned: list[Spot] = []
         self.saved = meshes.snapshot()
         self.stages: dict[str, float] = {}
         self._frames: deque = deque(maxlen=30)
@@ -96,10 +99,11 @@ class FlashlightSession:
         ms = ", ".join(f"{k} {v * 1e3:.1f} ms" for k, v in self.stages.items())
         return (f"RadTR flashlight: {self.updates_per_second:.0f} updates/s ({ms}); "
                 f"size {np.degrees(self.spot.angle):.0f} deg (+/-), intensity {self.spot.intensity:.3g} (wheel), "
-                f"{'mono' if self.flashlight.mono else 'colour'} (C); click keeps, Esc restores")
+                f"{'mono' if self.flashlight.mono else 'colour'} (C), {len(self.pinned)} pinned (P); "
+                f"click keeps, Esc restores")
 
     def update(self):
-        B, stages = self.flashlight.frame(self.spot)
+        B, stages = self.flashlight.frame([*self.pinned, self.spot])
         t0 = time.perf_counter()
         self.meshes.write(B)
         self.stages = {**stages, "write": time.perf_counter() - t0}
@@ -120,6 +124,9 @@ class FlashlightSession:
             self.spot.intensity /= 1.25
         elif event_type == "C":
             self.flashlight.set_mono(not self.flashlight.mono)
+        elif event_type == "P":
+            self.pinned.append(replace(self.spot, position=self.spot.position.copy(),
+                                       direction=self.spot.direction.copy()))
         elif event_type == "LEFTMOUSE":
             return {"FINISHED"}
         elif event_type in ("ESC", "RIGHTMOUSE"):

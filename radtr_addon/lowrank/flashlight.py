@@ -7,6 +7,11 @@ Embree shadow ray reaches it. That light, reflected, E_i = rho_i H_i, joins the 
 emission as the right-hand side of B = E + R K B, solved by the low-rank back-end. Several
 spots add their light. ``Flashlight.frame`` times each stage (visibility, solve).
 
+Lighting scenarios (day, night, lamps on) are solved radiosities of the same patches, kept
+and blended with weights: B is linear in the emission, so with scenarios a frame is
+sum w_s B_s plus the low-rank solve of the spots' light alone, and the scene's own light is
+as exact as the solves that made the scenarios.
+
 Shadow rays are the per-frame cost that grows with the lit patches. With ``ShadowGroups``
 (planar nodes of the patch hierarchy, at most ``GROUP_PATCHES`` patches each) a frame rays each
 lit group's centre and the patches at its three corners, and rays every lit patch of a group
@@ -21,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import SceneError
 from .backends import make_backend
 
 
@@ -124,6 +130,23 @@ def spot_irradiance(scene, spot: Spot, caster, groups: ShadowGroups | None = Non
     return H
 
 
+@dataclass
+class Scenario:
+    """A solved radiosity of the patches, shown ``weight`` times."""
+
+    name: str
+    B: np.ndarray           # (n, 3)
+    weight: float = 1.0
+
+
+def blend(scenarios, n: int) -> np.ndarray:
+    """sum weight x B (n, 3) over ``scenarios``."""
+    out = np.zeros((n, 3))
+    for sc in scenarios:
+        out += sc.weight * sc.B
+    return out
+
+
 def _name_of(backend) -> str:
     """The registered name of a back-end object (after a fallback it is not the one asked for)."""
     from .backends import BACKENDS
@@ -149,6 +172,8 @@ class Flashlight:
         self.backend_name = self.backend_name if self.backend_name == "user" else _name_of(self.backend)
         self.seconds = {"visibility": 0.0, "solve": 0.0}
         self.frames = 0
+        self.scenarios: list[Scenario] = []     # when set (set_scenarios), the scene's light is their blend
+        self._base = None
 
     @property
     def lowrank(self):
@@ -163,11 +188,21 @@ class Flashlight:
         self.mono = mono
         self.backend = make_backend(self.backend_name, self._mono if mono else self._colour, self.dtype, self.user)
 
+    def set_scenarios(self, scenarios: list[Scenario]):
+        """Show the blend of ``scenarios`` (solved on these patches) as the scene's own light;
+        none: the scene's emission, solved by the low-rank factors."""
+        for sc in scenarios:
+            if sc.B.shape != self.scene.emission.shape:
+                raise SceneError(f"lighting scenario '{sc.name}' has {len(sc.B):,} patches, the solve "
+                                 f"{self.scene.n:,}: it was solved on other patches")
+        self.scenarios = list(scenarios)
+        self._base = blend(scenarios, self.scene.n) if scenarios else None
+
     def emission(self, spots) -> np.ndarray:
-        """The right-hand side: the scene's emission plus the reflected light of ``spots``
-        (a Spot or several)."""
+        """The right-hand side: the scene's emission (none when scenarios stand for it) plus
+        the reflected light of ``spots`` (a Spot or several)."""
         s = self.scene
-        E = s.emission.copy()
+        E = np.zeros_like(s.emission) if self.scenarios else s.emission.copy()
         for spot in [spots] if isinstance(spots, Spot) else spots:
             lit, H = spot_light(s, spot, self._caster, self.groups, self._centroids)
             E[lit] += s.rho[lit] * H
@@ -180,6 +215,8 @@ class Flashlight:
         E = self.emission(spot)
         t1 = time.perf_counter()
         B = self.backend.solve(E)
+        if self._base is not None:
+            B = B + (self._base.mean(axis=1, keepdims=True) if self.mono else self._base)
         t2 = time.perf_counter()
         stages = {"visibility": t1 - t0, "solve": t2 - t1}
         for k, v in stages.items():
