@@ -89,7 +89,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         description="Stop when the residual (unshot) power falls below this fraction of the emitted power")
     max_iterations: IntProperty(
         name="Max Iterations", default=_D.max_iterations, min=1,
-        description="Stop after this many shots (shooting) or sweeps (gathering); Continue goes on")
+        description="Stop after this many shots (shooting) or sweeps (gathering, and per round of "
+                    "hierarchical); Continue goes on")
     precision: EnumProperty(
         name="Precision", default=_D.precision,
         items=[("float64", "Double", "Accumulate in float64"),

@@ -76,7 +76,8 @@ def _settings_args(p: argparse.ArgumentParser):
     p.add_argument("--user-solver", default=d.user_solver,
                    help="with --solver user: module:function or file.py:function (see examples/)")
     p.add_argument("--tolerance", type=float, default=d.tolerance, help="residual/emitted power to stop at")
-    p.add_argument("--iterations", type=int, default=d.max_iterations, help="most shots or sweeps")
+    p.add_argument("--iterations", type=int, default=d.max_iterations,
+                   help="most shots or sweeps (hierarchical: sweeps per round)")
     p.add_argument("--precision", default=d.precision, choices=("float32", "float64"), help="accumulation")
     p.add_argument("--ambient", action="store_true", help="shooting: show unshot light as an ambient term")
     p.add_argument("--gather-rays", type=int, default=d.gather_rays,

@@ -236,9 +236,14 @@ def test_solve_operator_writes_adaptive_leaves(addon, blend):
     colours = np.concatenate([np.array([c.color for c in m.color_attributes["radtr_radiosity"].data])
                               for m in meshes])
     assert np.isfinite(colours).all() and colours[:, :3].max() > 0
+    assert job.stats.seconds["refine"] > 0 and "form_factors" not in job.stats.seconds
     s.quality = 0.03
     assert bpy.ops.radtr.solve() == {"FINISHED"}
     assert running["last"].leaves.n > coarse
+    s.max_iterations = 2                                   # Max Iterations caps each round's sweeps
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    sweeps = np.diff([0] + [r["sweeps"] for r in running["last"].adaptive.rounds])
+    assert sweeps.max() <= 2
 
 
 def test_result_meshes_meet_vertex_to_vertex():

@@ -114,6 +114,8 @@ NAN = float("nan")
     (dict(method="embree", rays=400_000_000), "casting 400,000,000 rays per patch needs 59.6 GiB"),
     (dict(gather_rays=100_000_000), "gathering 100,000,000 rays per vertex needs 14.9 GiB"),
     (dict(sky="uniform", sky_step=0.001), r"a sky dome of 32,400,000,000 points \(step 0.001 degrees\) needs"),
+    (dict(solver="hierarchical", quality=1e-9), "quality must be between 1e-4 and 1 .*, got 1e-09"),
+    (dict(solver="hierarchical", quality=NAN), "quality must be between 1e-4 and 1"),
 ])
 def test_bad_settings_are_refused_naming_the_setting(kw, message):
     with pytest.raises(SettingsError, match=message):

@@ -45,7 +45,7 @@ class HierarchicalSettings:
     min_area: float = 1e-6         # smallest element, as a fraction of the scene's area
     tolerance: float = 1e-4        # Jacobi stop: residual power / emitted
     max_rounds: int = 8
-    max_sweeps: int = 400
+    max_sweeps: int = 400          # Jacobi sweeps per round (Max Iterations)
     seed: int = 0
 
 
@@ -495,8 +495,7 @@ class HierarchicalRadiosity:
         residual = self.history[-1] if self.history else 1.0
         res = SolveResult(self.B[at], self.H[at], self.sweeps, residual <= self.settings.tolerance,
                           list(self.history), list(self.times),
-                          {"form_factors": self.stage_seconds["refine"], "solve": self.stage_seconds["solve"],
-                           "clusters": self.stage_seconds["clusters"]},
+                          dict(self.stage_seconds),
                           "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
         if corners:
             P, T = verts[tris], nd.tri[leaf]                            # (k, 3 corners, 3), (k, 3, 3)
