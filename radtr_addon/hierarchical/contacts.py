@@ -11,6 +11,13 @@ where that surface shows its back (the cell is under a box, however tall). An
 element is *mixed* when among the cells it covers some have a surface near in front
 (``NEAR_SHARE``) and some do not; every link into a mixed element is refined at the
 receiver, down to elements wholly in the gap or wholly out of it (or the deepest level).
+
+As a source, an element sends the light of its open part to the room and that of its part
+in the gap into the gap: the floor around a box's footprint lights the box's sides with the
+floor's open radiosity, not with a mean that counts the dark floor under the box, and a
+ceiling over a lamp's back sends its bright part to the lamp only. ``gap_share`` gives each
+leaf's share of cells in a gap (the input triangle's own cells, by ``near`` at its size),
+``in_gap`` which receivers lie in a source's gap.
 """
 from __future__ import annotations
 
@@ -68,6 +75,15 @@ class Proximity:
             h, hit = caster.first_hit(pts.reshape(-1, 3) + caster.epsilon * n, n)
             back = (hit >= 0) & (np.einsum("kc,kc->k", s.normals[np.maximum(hit, 0)], n) > 0)
             self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = np.where(back, 0.0, h)
+        self.gap = np.zeros(len(self.h), bool)            # per cell: in a gap of its input triangle
+        self.gap_h = np.full(s.n, -np.inf)                  # per input triangle: its widest gap (-inf: none)
+        self.tolerance = 10 * caster.epsilon
+        for g in np.unique(self.g):
+            ts = np.flatnonzero(self.g == g)
+            cells = self.offset[ts][:, None] + np.arange(4 ** g)
+            gap = near(self.h[cells], r0[ts])
+            self.gap[cells] = gap
+            self.gap_h[ts] = np.where(gap, self.h[cells], -np.inf).max(axis=1)
         touched = np.zeros(nodes.size, bool)
         for g in np.unique(self.g):
             ts = np.flatnonzero(self.g == g)
@@ -78,6 +94,29 @@ class Proximity:
                 node = np.unique(nodes.parent[node])
                 node = node[node >= 0]
         self._known = np.where(touched, 2, 0).astype(np.int8)     # per node: 0 unknown, 1 no, 2 mixed
+
+    def gap_share(self, elements: np.ndarray) -> np.ndarray:
+        """Share (m,) of each element's cells that lie in a gap (an element finer than the
+        cells takes its cell's)."""
+        nd = self.nodes
+        t, lv = nd.root[elements], nd.level[elements]
+        k = self.g[t] - lv
+        out = np.empty(len(elements))
+        fine = k <= 0
+        out[fine] = self.gap[self.offset[t[fine]] + (nd.path[elements[fine]] >> (2 * -k[fine]))]
+        for depth in np.unique(k[~fine]):
+            sel = np.flatnonzero(k == depth)
+            first = self.offset[t[sel]] + nd.path[elements[sel]] * 4 ** depth
+            out[sel] = self.gap[first[:, None] + np.arange(4 ** depth)].mean(axis=1)
+        return out
+
+    def in_gap(self, src: np.ndarray, rcv: np.ndarray) -> np.ndarray:
+        """Whether each receiver's centre lies within the widest gap in front of its element
+        source (a lamp's back under the ceiling over it, a box's bottom on the floor)."""
+        nd = self.nodes
+        t = nd.root[src]
+        height = np.einsum("ij,ij->i", nd.center[rcv] - nd.center[src], nd.normal[src])
+        return height <= 1.5 * self.gap_h[t] + self.tolerance
 
     def mixed(self, ids: np.ndarray) -> np.ndarray:
         """Whether each node of ``ids`` is mixed (an element, or a cluster: see the class)."""

@@ -149,8 +149,10 @@ class HierarchicalRadiosity:
         self.eps = s.epsilon * self.power / float(scene.areas.sum())     # W/m^2
         self.min_area = s.min_area * float(scene.areas.sum())
         self.Bn = nd.E[:nd.size].copy()
+        self.Bopen, self.Bgap = self.Bn.copy(), self.Bn.copy()     # of the open part and of the gap (contacts)
         self.Brange = np.zeros(nd.size)
-        self._pull(nd.element_root, nd.element_root[:, None], self.Bn[nd.element_root])
+        self._pull(nd.element_root, nd.element_root[:, None], self.Bn[nd.element_root],
+                   self.contacts.gap_share(nd.element_root))
         self.links = Links.empty()
         self.sweeps, self.history, self.times = 0, [], []
         self.rounds: list[dict] = []
@@ -192,6 +194,8 @@ class HierarchicalRadiosity:
         nd, old = self.nodes, len(self.Bn)
         par = nd.parent[old:nd.size]
         self.Bn = np.concatenate([self.Bn, self.Bn[par]])
+        self.Bopen = np.concatenate([self.Bopen, self.Bopen[par]])
+        self.Bgap = np.concatenate([self.Bgap, self.Bgap[par]])
         self.Brange = np.concatenate([self.Brange, np.zeros(nd.size - old)])
 
     def can_split(self, n: np.ndarray) -> np.ndarray:
@@ -222,12 +226,13 @@ class HierarchicalRadiosity:
         return err
 
     def _source_term(self, L: Links, bound: bool = False) -> np.ndarray:
-        """B of an element source; a cluster source's sum B A max(0, n.w) along the link's
-        direction, read between the table's directions (``bound``: the largest of them, for
-        the error estimate)."""
+        """B of an element source (of its part in a gap for a receiver in that gap, else of
+        its open part: ``contacts``); a cluster source's sum B A max(0, n.w) over its open
+        parts along the link's direction, read between the table's directions (``bound``: the
+        largest of them, for the error estimate)."""
         nd = self.nodes
         cs = nd.cluster[L.src]
-        term = self.Bn[L.src].copy()
+        term = np.where(self.contacts.in_gap(L.src, L.rcv)[:, None], self.Bgap[L.src], self.Bopen[L.src])
         if cs.any():
             corners = self.table[L.src[cs, None], L.d[cs]]                 # (c, 3 directions, 3)
             term[cs] = corners.max(axis=1) if bound else np.einsum("cj,cjk->ck", L.dw[cs], corners)
@@ -296,28 +301,43 @@ class HierarchicalRadiosity:
             node = np.where(live, up, node)
         return anc
 
-    def _pull(self, leaves: np.ndarray, anc: np.ndarray, B: np.ndarray):
-        """Element radiosity as area means of their leaves, its spread, and the clusters' tables."""
+    def _pull(self, leaves: np.ndarray, anc: np.ndarray, B: np.ndarray, share: np.ndarray):
+        """Element radiosity as area means of their leaves (all of them, the open part, the
+        part in a gap: ``share`` per leaf, each leaf's light spread evenly over it), its
+        spread, and the clusters' tables (of the open parts)."""
         nd = self.nodes
         n = nd.size + 1
         w = nd.area[leaves]
-        total = np.zeros(n)
-        sums = np.zeros((n, 3))
+        w_open = w * (1.0 - share)
+        total, total_open = np.zeros(n), np.zeros(n)
+        sums, sums_open = np.zeros((n, 3)), np.zeros((n, 3))
         lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
         bmax = B.max(axis=1)
+        gapped = share.any()
         for k in range(anc.shape[1]):
             col = anc[:, k]
             total += np.bincount(col, weights=w, minlength=n)
+            if gapped:
+                total_open += np.bincount(col, weights=w_open, minlength=n)
             for c in range(3):
                 sums[:, c] += np.bincount(col, weights=w * B[:, c], minlength=n)
+                if gapped:
+                    sums_open[:, c] += np.bincount(col, weights=w_open * B[:, c], minlength=n)
             np.minimum.at(lo, col, bmax)
             np.maximum.at(hi, col, bmax)
         el = np.flatnonzero(total[:-1] > 0)
         self.Bn[el] = sums[el] / total[el, None]
+        self.Bopen[el], self.Bgap[el] = self.Bn[el], self.Bn[el]
+        if gapped:
+            open_, gap = total_open[el], total[el] - total_open[el]
+            some = el[open_ > 1e-9 * total[el]]
+            self.Bopen[some] = sums_open[some] / total_open[some, None]
+            some = el[gap > 1e-9 * total[el]]
+            self.Bgap[some] = (sums[some] - sums_open[some]) / (total[some] - total_open[some])[:, None]
         self.Brange[el] = hi[el] - lo[el]
         table = np.zeros((self.size0, len(DIRECTIONS), 3))
         roots = nd.element_root
-        table[roots] = self.proj_root[:, :, None] * self.Bn[roots][:, None, :]
+        table[roots] = self.proj_root[:, :, None] * self.Bopen[roots][:, None, :]
         for level in reversed(self.by_depth):
             first = nd.first_child[level]
             table[level] = table[first] + table[first + 1]
@@ -369,13 +389,14 @@ class HierarchicalRadiosity:
         anc, plan = self._ancestors(leaves), self._push_plan()
         E, rho, A = nd.E[leaves], nd.rho[leaves], nd.area[leaves]
         B = self.Bn[leaves].copy()
-        self._pull(leaves, anc, B)
+        share = self.contacts.gap_share(leaves)
+        self._pull(leaves, anc, B, share)
         for _ in range(s.max_sweeps):
             H6 = self._gather(leaves, plan)
             B_new = E + rho * np.einsum("i,lic->lc", quadratic.MEAN, H6)
             residual = float((A[:, None] * np.abs(B_new - B)).sum(axis=0).max()) / self.power
             B = B_new
-            self._pull(leaves, anc, B)
+            self._pull(leaves, anc, B, share)
             self.sweeps += 1
             self.history.append(residual)
             self.times.append(time.perf_counter() - self._t_start)
