@@ -12,12 +12,13 @@ element is *mixed* when among the cells it covers some have a surface near in fr
 (``NEAR_SHARE``) and some do not; every link into a mixed element is refined at the
 receiver, down to elements wholly in the gap or wholly out of it (or the deepest level).
 
-As a source, an element sends the light of its open part to the room and that of its part
-in the gap into the gap: the floor around a box's footprint lights the box's sides with the
-floor's open radiosity, not with a mean that counts the dark floor under the box, and a
-ceiling over a lamp's back sends its bright part to the lamp only. ``gap_share`` gives each
-leaf's share of cells in a gap (the input triangle's own cells, by ``near`` at its size),
-``in_gap`` which receivers lie in a source's gap.
+As a source, an element sends the light of its open part to the room and that of its
+covered part (cells under a surface's back: the floor under a box) only to what covers it:
+the floor around a box's footprint lights the box's sides with the floor's open radiosity,
+not with a mean that counts the dark floor under the box. Gaps that stay open at their
+edges (a ceiling 1 cm over a lamp, a wall behind a sofa) keep their mean: their light
+leaks out sideways. ``gap_share`` gives each leaf's share of covered cells, ``in_gap``
+which receivers lie on a source's covered part.
 """
 from __future__ import annotations
 
@@ -75,15 +76,9 @@ class Proximity:
             h, hit = caster.first_hit(pts.reshape(-1, 3) + caster.epsilon * n, n)
             back = (hit >= 0) & (np.einsum("kc,kc->k", s.normals[np.maximum(hit, 0)], n) > 0)
             self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = np.where(back, 0.0, h)
-        self.gap = np.zeros(len(self.h), bool)            # per cell: in a gap of its input triangle
-        self.gap_h = np.full(s.n, -np.inf)                  # per input triangle: its widest gap (-inf: none)
+        self.gap = self.h == 0                              # per cell: covered (a surface's back on it)
+        self.covered = np.add.reduceat(self.gap, self.offset[:-1]) > 0      # per input triangle
         self.tolerance = 10 * caster.epsilon
-        for g in np.unique(self.g):
-            ts = np.flatnonzero(self.g == g)
-            cells = self.offset[ts][:, None] + np.arange(4 ** g)
-            gap = near(self.h[cells], r0[ts])
-            self.gap[cells] = gap
-            self.gap_h[ts] = np.where(gap, self.h[cells], -np.inf).max(axis=1)
         touched = np.zeros(nodes.size, bool)
         for g in np.unique(self.g):
             ts = np.flatnonzero(self.g == g)
@@ -96,7 +91,7 @@ class Proximity:
         self._known = np.where(touched, 2, 0).astype(np.int8)     # per node: 0 unknown, 1 no, 2 mixed
 
     def gap_share(self, elements: np.ndarray) -> np.ndarray:
-        """Share (m,) of each element's cells that lie in a gap (an element finer than the
+        """Share (m,) of each element's cells that are covered (an element finer than the
         cells takes its cell's)."""
         nd = self.nodes
         t, lv = nd.root[elements], nd.level[elements]
@@ -111,12 +106,11 @@ class Proximity:
         return out
 
     def in_gap(self, src: np.ndarray, rcv: np.ndarray) -> np.ndarray:
-        """Whether each receiver's centre lies within the widest gap in front of its element
-        source (a lamp's back under the ceiling over it, a box's bottom on the floor)."""
+        """Whether each receiver's centre lies on its element source's plane where that has
+        covered cells (a box's bottom on the floor under it)."""
         nd = self.nodes
-        t = nd.root[src]
         height = np.einsum("ij,ij->i", nd.center[rcv] - nd.center[src], nd.normal[src])
-        return height <= 1.5 * self.gap_h[t] + self.tolerance
+        return self.covered[nd.root[src]] & (height <= self.tolerance)
 
     def mixed(self, ids: np.ndarray) -> np.ndarray:
         """Whether each node of ``ids`` is mixed (an element, or a cluster: see the class)."""
