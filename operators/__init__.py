@@ -12,4 +12,23 @@ CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_resume, RADTR_OT_flashli
            RADTR_OT_scenario_remove, RADTR_OT_patch_view, RADTR_OT_view_from_patch, RADTR_OT_load_vector,
            RADTR_OT_toggle_emission, RADTR_OT_clear)
 
-register, unregister = bpy.utils.register_classes_factory(CLASSES)
+_register, _unregister = bpy.utils.register_classes_factory(CLASSES)
+
+
+@bpy.app.handlers.persistent
+def _forget_jobs(*_):
+    """A file opened or a new one made: the last solve's objects belong to the file left."""
+    from .solve import running
+
+    running["last"] = None
+
+
+def register():
+    _register()
+    bpy.app.handlers.load_post.append(_forget_jobs)
+
+
+def unregister():
+    if _forget_jobs in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(_forget_jobs)
+    _unregister()

@@ -40,7 +40,7 @@ class RADTR_OT_flashlight(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         scenarios, skipped = usable(s, running["last"])
-        if scenarios:
+        if any(sc.weight > 0 for sc in scenarios):
             light.set_scenarios(scenarios)
         for w in warnings + skipped:
             self.report({"WARNING"}, w)

@@ -140,11 +140,43 @@ def cmd_solve(args) -> int:
     return 0
 
 
-def read_spots(path: str, scene) -> list:
-    """Poses from a JSON list: each a spot {position, direction, angle_deg, intensity, color}
-    or a list of such spots lighting at once. Returns one Spot or list of Spots a pose."""
+def read_poses(path: str) -> list[list[dict]]:
+    """Poses from a JSON list, checked before any work: each a spot {position, direction,
+    angle_deg, intensity, color} or a non-empty list of spots lighting at once."""
     import json
 
+    import numpy as np
+
+    try:
+        entries = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise RadTRError(f"{path}: not a JSON list of poses ({exc})") from None
+    if not isinstance(entries, list) or not entries:
+        raise RadTRError(f"{path}: no poses (a JSON list of spots, or of lists of spots, is needed)")
+    poses = []
+    for k, entry in enumerate(entries):
+        spots = entry if isinstance(entry, list) else [entry]
+        if not spots:
+            raise RadTRError(f"{path}: pose {k} is an empty list (give it at least one spot)")
+        for j, spot in enumerate(spots):
+            where = f"pose {k}" + (f", spot {j}" if isinstance(entry, list) else "")
+            try:
+                values = np.concatenate([np.asarray(spot[key], float).reshape(3) for key in ("position", "direction")]
+                                        + [np.asarray(spot.get("color", (1, 1, 1)), float).reshape(3),
+                                           [float(spot.get("angle_deg", 20)), float(spot.get("intensity", 1))]])
+            except (KeyError, TypeError, ValueError, AttributeError) as exc:
+                raise RadTRError(f"{path}: {where} is not a spot with position and direction "
+                                 f"([x, y, z] each): {exc}") from None
+            if not np.isfinite(values).all() or values[6:].min() < 0:
+                raise RadTRError(f"{path}: {where} has a NaN, infinite or negative value (intensity "
+                                 f"{values[-1]:g}, colour {values[6:9].tolist()})")
+        poses.append(spots)
+    return poses
+
+
+def spots_for(poses: list[list[dict]], scene) -> list:
+    """The Spots of each pose (``read_poses``), lit like the scene's own light
+    unless the pose says its intensity."""
     import numpy as np
 
     from .blender.flashlight import default_spot
@@ -154,21 +186,14 @@ def read_spots(path: str, scene) -> list:
         spot.angle = np.radians(float(entry.get("angle_deg", np.degrees(spot.angle))))
         spot.intensity = float(entry.get("intensity", spot.intensity))
         spot.color = np.asarray(entry.get("color", spot.color), float)
-        values = np.concatenate([spot.position, spot.direction, spot.color, [spot.angle, spot.intensity]])
-        if not np.isfinite(values).all() or spot.intensity < 0 or spot.color.min() < 0:
-            raise RadTRError(f"{path}: pose {k} has a NaN, infinite or negative value (intensity "
-                             f"{spot.intensity:g}, colour {spot.color.tolist()})")
         return spot
 
-    try:
-        poses = []
-        for k, pose in enumerate(json.loads(Path(path).read_text())):
-            poses.append([spot_of(e) for e in pose] if isinstance(pose, list) else spot_of(pose))
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise RadTRError(f"{path}: not a list of poses with position and direction ({exc})") from None
-    if not poses:
-        raise RadTRError(f"{path}: no poses")
-    return poses
+    return [[spot_of(e) for e in p] for p in poses]
+
+
+def read_spots(path: str, scene) -> list:
+    """``spots_for(read_poses(path), scene)``."""
+    return spots_for(read_poses(path), scene)
 
 
 def cmd_flashlight(args) -> int:
@@ -177,6 +202,7 @@ def cmd_flashlight(args) -> int:
     from .blender.flashlight import flashlight_for, render_poses
     from .blender.pipeline import solve
 
+    poses = read_poses(args.poses)                  # checked before the solve and the precompute
     for w in open_scene(args.scene):
         print(f"RadTR warning: {w}")
     job = solve(bpy.context, settings_from(args))
@@ -187,7 +213,7 @@ def cmd_flashlight(args) -> int:
         print(f"RadTR warning: {w}")
     print(f"RadTR: low-rank {light.lowrank.k:,} clusters "
           f"{'read from the cache' if hit else 'built'}")
-    for path in render_poses(bpy.context.scene, light, meshes, read_spots(args.poses, job.leaves), args.out_dir):
+    for path in render_poses(bpy.context.scene, light, meshes, spots_for(poses, job.leaves), args.out_dir):
         print(f"RadTR: rendered {path}")
     return 0
 

@@ -60,6 +60,16 @@ def test_solve_writes_attributes_and_clear_restores(cornell):
     assert all(not bpy.data.objects[n].hide_get() for n in sources)
 
 
+def test_opening_another_file_forgets_the_last_solve(addon, cornell):
+    """Scenarios, the flashlight and Continue work on the last solve's objects: once another
+    file is opened they are gone, so the last solve is forgotten (not used stale)."""
+    assert cornell.ops.radtr.solve() == {"FINISHED"}
+    assert addon.operators.solve.running["last"] is not None
+    cornell.ops.wm.read_homefile(use_empty=True)
+    assert addon.operators.solve.running["last"] is None
+    assert not cornell.ops.radtr.scenario_add.poll()
+
+
 def test_solving_twice_gives_the_same_patches(cornell):
     bpy = cornell
     small(bpy)

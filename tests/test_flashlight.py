@@ -210,6 +210,9 @@ def test_stored_scenarios_blend_in_the_result_meshes_and_pins_add_spots(addon, s
         patch = np.asarray(meshes.snapshot()[0][0]).reshape(-1, 4)[:, :3]
         part = meshes.parts[0][1]
         np.testing.assert_allclose(patch, 2.0 * job.result.B[part.patches], rtol=1e-6)
+        item.weight = 0.0                                       # no weight: the solve itself again
+        patch = np.asarray(meshes.snapshot()[0][0]).reshape(-1, 4)[:, :3]
+        np.testing.assert_allclose(patch, job.result.B[part.patches], rtol=1e-6)
         item["key"] = "other patches"
         scenarios, warnings = usable(settings, job)
         assert not scenarios and "'lamp' was solved on other patches" in warnings[0]

@@ -188,6 +188,22 @@ def test_flashlight_pose_with_nan_intensity_is_refused(tmp_path):
         read_spots(poses(tmp_path, intensity=NAN), cube())
 
 
+@pytest.mark.parametrize("text, message", [
+    ('[{"position": [0, 0, 1], "direction": [0, 0, -1]}, []]', "pose 1 is an empty list"),
+    ('[[{"position": [0, 0, 1], "direction": [0, 0, -1]}, "foo"]]', "pose 0, spot 1 is not a spot with position"),
+    ('[{"position": [0, 0], "direction": [0, 0, -1]}]', r"pose 0 is not a spot with position and direction"),
+    ("[]", "no poses"),
+    ("{not json", "not a JSON list of poses"),
+])
+def test_flashlight_poses_are_checked_before_any_work_naming_the_pose(tmp_path, text, message):
+    from radtr_addon.cli import read_poses
+
+    path = tmp_path / "poses.json"
+    path.write_text(text)
+    with pytest.raises(RadTRError, match=message):
+        read_poses(str(path))
+
+
 def test_flashlight_level_beyond_the_hierarchy_is_an_error(cornell, tmp_path):
     from radtr_addon.blender.flashlight import flashlight_for
 

@@ -1,16 +1,23 @@
 """``bench realtime``: low-rank precompute and flashlight frames on the Cornell box.
 
-For about 3,584 / 10,000 / 50,000 / 100,000 patches (``--quick``: 896 / 3,584) the hierarchy
-gets enough levels (each round halves the area limit) for a level near ``CLUSTERS`` nodes,
-and that level (k clusters) is factored from Embree rows (256 rays). Table ``precompute``:
-seconds by stage (hierarchy, form factors of the k representatives, U, LU) and the memory
-of U, next to the seed's set-up (Tables 7 and 10).
+For about 3,584 / 10,000 / 50,000 / 100,000 patches (targets; the subdivision lands on
+3,872 / 10,016 / 55,808 / 111,104; ``--quick``: 896 / 3,584, landing on 968 / 3,872) the
+hierarchy gets enough levels (each round halves the area limit) for a level near
+``CLUSTERS`` nodes, and that level (k clusters) is factored from Embree rows (256 rays).
+Table ``precompute``: seconds by stage (hierarchy, form factors of the k representatives,
+U, LU) and the memory of U; ``seed``: the seed's set-up and frame rates at its nearest size
+(Tables 7 and 10), where it measured one.
 Table ``frames``: per back-end, colour and mono, the fewest and most patches a pose lights
-(the poses sweep the inside of the box from the camera), ms per frame by stage (visibility of the
-spot, the k-sized coefficients, the n x k product, write-back into the Blender meshes) and
-updates per second, over ``FRAMES`` spot poses; ``bound_ms`` is the time a memory-bound
-product would need: U's bytes over the read bandwidth of a numpy copy of the same size,
-measured in the same run.
+(the poses sweep the inside of the box from the camera); ``rays``: shadow rays cast a frame
+(each lit group's 4 samples, and every lit patch of a group whose samples disagree or that is
+too small to sample: it can exceed the lit patches on small scenes); ``shadow_misses``: the
+largest fraction, over every 4th pose, of lit patches whose grouped shadow test differs from
+a ray per patch; ms per frame by stage (visibility of the spot, the k-sized coefficients,
+the n x k product, write-back into the Blender meshes) and updates per second, over
+``FRAMES`` spot poses, one run each (2 busy cores make single figures vary by tens of
+percent); ``bound_ms`` is the time a memory-bound product would need: U's bytes over the read
+bandwidth of a numpy copy of the same size, measured in the same run (below a few MB, U
+stays in cache and this is no bound).
 """
 from __future__ import annotations
 

@@ -19,8 +19,8 @@ def patches_key(leaves) -> str:
 
 
 def store(settings, job, name: str):
-    """A new scenario item holding ``job``'s solved B under ``name`` (weight 0: the blend
-    shown does not change until it is given one)."""
+    """A new scenario item holding ``job``'s solved B under ``name``, at weight 0 (while every
+    weight is 0 the meshes show the last solve)."""
     item = settings.scenarios.add()
     item.name = name
     item["B"] = np.asarray(job.result.B, dtype=np.float32).ravel()
@@ -42,10 +42,12 @@ def usable(settings, job) -> tuple[list[Scenario], list[str]]:
 
 
 def show_blend(settings, job) -> list[str]:
-    """Write the weighted sum of the usable scenarios into ``job``'s result meshes; warnings."""
+    """Write the weighted sum of the usable scenarios into ``job``'s result meshes, or the
+    solve's own B when no weight is above 0 (none stored, all at 0, the last removed); warnings."""
     from .flashlight import LiveMeshes
 
     scenarios, warnings = usable(settings, job)
-    if scenarios:
-        LiveMeshes(job.objects, job.leaves).write(blend(scenarios, job.leaves.n))
+    weighted = [sc for sc in scenarios if sc.weight > 0]
+    B = blend(weighted, job.leaves.n) if weighted else job.result.B
+    LiveMeshes(job.objects, job.leaves).write(B)
     return warnings
