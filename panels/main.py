@@ -1,15 +1,23 @@
-"""RadTR's N-panel: settings, the operators and a live readout (residual, energy) of a running solve."""
+"""RadTR's N-panel: Patches and Solve with a live readout (residual, energy) of a running
+solve, and sub-panels for the form factors, the flashlight, lighting scenarios and views."""
 import bpy
 
 from ..operators.solve import running
 
 
-class RADTR_PT_main(bpy.types.Panel):
-    bl_label = "RadTR"
-    bl_idname = "RADTR_PT_main"
+class _RadTRPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "RadTR"
+
+
+class _SubPanel(_RadTRPanel):
+    bl_parent_id = "RADTR_PT_main"
+
+
+class RADTR_PT_main(_RadTRPanel, bpy.types.Panel):
+    bl_label = "RadTR"
+    bl_idname = "RADTR_PT_main"
 
     def draw(self, context):
         s = context.scene.radtr
@@ -25,14 +33,9 @@ class RADTR_PT_main(bpy.types.Panel):
             col.prop(s, "ambient")
         elif s.solver == "user":
             col.prop(s, "user_solver")
-        if s.solver == "hierarchical":
-            col.prop(s, "quality")
-        else:
-            col.prop(s, "precision")
+        col.prop(s, "quality" if s.solver == "hierarchical" else "precision")
         col.prop(s, "tolerance")
         col.prop(s, "max_iterations")
-        if s.solver != "hierarchical":
-            self.draw_form_factors(col, s)
         col.prop(s, "gather_rays")
         col.prop(s, "sky")
         if s.sky != "none":
@@ -44,44 +47,37 @@ class RADTR_PT_main(bpy.types.Panel):
         row = col.row(align=True)
         row.operator("radtr.solve", icon="LIGHT_SUN")
         row.operator("radtr.resume", icon="PLAY", text="Continue")
-        job = running["job"]
-        if job is not None:
-            solver = job.solver
-            box = col.box()
-            box.label(text=solver.phase)
-            box.label(text=f"Residual {solver.residual:.2e} of emitted (stop at {solver.tol:g})")
-            e = solver.energy()
-            box.label(text=f"Absorbed {e['absorbed']:.1%}, escaped {e['escaped'] + e['blocked']:.1%}, "
-                           f"unshot {e['unshot']:.1%}")
-        col.separator()
-        col.label(text="Flashlight")
-        col.prop(s, "lowrank_level")
-        col.prop(s, "lowrank_refine")
-        col.prop(s, "lowrank_backend")
-        if s.lowrank_backend == "user":
-            col.prop(s, "lowrank_user")
-        col.operator("radtr.flashlight", icon="LIGHT_SPOT")
-        col.separator()
-        col.label(text="Views")
-        col.prop(s, "display")
-        col.prop(s, "exposure")
-        col.prop(s, "view_patch")
-        col.prop(s, "view_kind")
-        row = col.row(align=True)
-        row.operator("radtr.patch_view", icon="IMAGE_DATA")
-        row.operator("radtr.view_from_patch", icon="VIEW_CAMERA")
-        col.operator("radtr.load_vector", icon="FILE_FOLDER")
-        col.operator("radtr.toggle_emission", icon="RESTRICT_SELECT_OFF")
-        col.operator("radtr.clear", icon="TRASH")
+        RADTR_PT_main.draw_readout(col)
 
     @staticmethod
-    def draw_form_factors(col, s):
-        col.label(text="Form Factors")
+    def draw_readout(col):
+        job = running["job"]
+        if job is None:
+            return
+        solver = job.solver
+        box = col.box()
+        box.label(text=solver.phase)
+        box.label(text=f"Residual {solver.residual:.2e} of emitted (stop at {solver.tol:g})")
+        e = solver.energy()
+        box.label(text=f"Absorbed {e['absorbed']:.1%}, escaped {e['escaped'] + e['blocked']:.1%}, "
+                       f"unshot {e['unshot']:.1%}")
+
+
+class RADTR_PT_form_factors(_SubPanel, bpy.types.Panel):
+    """How the uniform solvers' form factors are computed (the hierarchical one makes its own)."""
+
+    bl_label = "Form Factors"
+    bl_idname = "RADTR_PT_form_factors"
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene.radtr.solver != "hierarchical"
+
+    def draw(self, context):
+        s = context.scene.radtr
+        col = self.layout.column()
         col.prop(s, "method")
-        if s.method == "embree":
-            col.prop(s, "rays")
-        else:
-            col.prop(s, "resolution")
+        col.prop(s, "rays" if s.method == "embree" else "resolution")
         if s.method == "hemicube":
             col.prop(s, "rotate")
         elif s.method == "paraboloid":
@@ -90,15 +86,26 @@ class RADTR_PT_main(bpy.types.Panel):
                 col.prop(s, "split_level")
 
 
-class RADTR_PT_scenarios(bpy.types.Panel):
-    """Stored lighting scenarios and their weights (a sub-panel)."""
+class RADTR_PT_flashlight(_SubPanel, bpy.types.Panel):
+    bl_label = "Flashlight"
+    bl_idname = "RADTR_PT_flashlight"
+
+    def draw(self, context):
+        s = context.scene.radtr
+        col = self.layout.column()
+        col.prop(s, "lowrank_level")
+        col.prop(s, "lowrank_refine")
+        col.prop(s, "lowrank_backend")
+        if s.lowrank_backend == "user":
+            col.prop(s, "lowrank_user")
+        col.operator("radtr.flashlight", icon="LIGHT_SPOT")
+
+
+class RADTR_PT_scenarios(_SubPanel, bpy.types.Panel):
+    """Stored lighting scenarios and their weights."""
 
     bl_label = "Lighting Scenarios"
     bl_idname = "RADTR_PT_scenarios"
-    bl_parent_id = "RADTR_PT_main"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "RadTR"
 
     def draw(self, context):
         s = context.scene.radtr
@@ -109,3 +116,22 @@ class RADTR_PT_scenarios(bpy.types.Panel):
             row.prop(item, "weight", text="", slider=True)
             row.operator("radtr.scenario_remove", text="", icon="X").index = i
         col.operator("radtr.scenario_add", icon="ADD")
+
+
+class RADTR_PT_views(_SubPanel, bpy.types.Panel):
+    bl_label = "Views"
+    bl_idname = "RADTR_PT_views"
+
+    def draw(self, context):
+        s = context.scene.radtr
+        col = self.layout.column()
+        col.prop(s, "display")
+        col.prop(s, "exposure")
+        col.prop(s, "view_patch")
+        col.prop(s, "view_kind")
+        row = col.row(align=True)
+        row.operator("radtr.patch_view", icon="IMAGE_DATA")
+        row.operator("radtr.view_from_patch", icon="VIEW_CAMERA")
+        col.operator("radtr.load_vector", icon="FILE_FOLDER")
+        col.operator("radtr.toggle_emission", icon="RESTRICT_SELECT_OFF")
+        col.operator("radtr.clear", icon="TRASH")

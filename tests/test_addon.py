@@ -60,6 +60,53 @@ def test_solve_writes_attributes_and_clear_restores(cornell):
     assert all(not bpy.data.objects[n].hide_get() for n in sources)
 
 
+class RecordingLayout:
+    """A stand-in for a panel's layout: records each setting and operator drawn, and fails on
+    one that does not exist."""
+
+    def __init__(self):
+        self.props, self.operators = [], []
+
+    def column(self, **_):
+        return self
+
+    row = box = column
+
+    def label(self, **_):
+        pass
+
+    def separator(self, **_):
+        pass
+
+    def prop(self, data, name, **_):
+        assert hasattr(data, name), name
+        self.props.append(name)
+
+    def operator(self, idname, **_):
+        import types
+
+        import bpy
+
+        assert getattr(bpy.ops.radtr, idname.removeprefix("radtr.")).get_rna_type().name
+        self.operators.append(idname)
+        return types.SimpleNamespace()
+
+
+@pytest.mark.parametrize("solver", ["shooting", "user", "hierarchical"])
+def test_every_panel_draws_settings_and_operators_that_exist(addon, blend, solver):
+    import types
+
+    s = blend.context.scene.radtr
+    s.solver = solver
+    drawn = RecordingLayout()
+    for cls in addon.panels.CLASSES:
+        if getattr(cls, "poll", None) is None or cls.poll(blend.context):
+            cls.draw(types.SimpleNamespace(layout=drawn), blend.context)
+    assert {"radtr.solve", "radtr.flashlight", "radtr.scenario_add", "radtr.clear"} <= set(drawn.operators)
+    assert ("quality" in drawn.props) == (solver == "hierarchical") == ("method" not in drawn.props)
+    assert ("user_solver" in drawn.props) == (solver == "user")
+
+
 def test_opening_another_file_forgets_the_last_solve(addon, cornell):
     """Scenarios, the flashlight and Continue work on the last solve's objects: once another
     file is opened they are gone, so the last solve is forgotten (not used stale)."""
