@@ -22,9 +22,8 @@ class RADTR_OT_scenario_add(bpy.types.Operator):
 
     def execute(self, context):
         s = context.scene.radtr
-        name = self.name or f"Scenario {len(s.scenarios) + 1}"
-        store(s, running["last"], name)
-        self.report({"INFO"}, f"RadTR: stored lighting scenario '{name}' ({running['last'].leaves.n:,} patches)")
+        item = store(s, running["last"], self.name or "Scenario")
+        self.report({"INFO"}, f"RadTR: stored lighting scenario '{item.name}' ({running['last'].leaves.n:,} patches)")
         return {"FINISHED"}
 
 

@@ -211,6 +211,8 @@ def test_stored_scenarios_blend_in_the_result_meshes_and_pins_add_spots(addon, s
         part = meshes.parts[0][1]
         np.testing.assert_allclose(patch, 2.0 * job.result.B[part.patches], rtol=1e-6)
         item.weight = 0.0                                       # no weight: the solve itself again
+        assert bpy.ops.radtr.scenario_add(name="lamp") == {"FINISHED"} and settings.scenarios[-1].name == "lamp 2"
+        settings.scenarios.remove(len(settings.scenarios) - 1)
         patch = np.asarray(meshes.snapshot()[0][0]).reshape(-1, 4)[:, :3]
         np.testing.assert_allclose(patch, job.result.B[part.patches], rtol=1e-6)
         item["key"] = "other patches"
