@@ -4,7 +4,7 @@ import bpy
 
 from ..radtr_addon.blender.flashlight import FlashlightSession, default_spot, flashlight_for
 from ..radtr_addon.blender.scenarios import usable
-from ..radtr_addon.errors import RadTRError
+from ..radtr_addon.errors import RadTRError, user_message
 from .solve import running
 
 
@@ -53,7 +53,11 @@ class RADTR_OT_flashlight(bpy.types.Operator):
 
     def modal(self, context, event):
         ray = mouse_ray(context, event) if event.type == "MOUSEMOVE" else None
-        result = self.session.handle(event.type, event.value, ray)
+        try:
+            result = self.session.handle(event.type, event.value, ray)
+        except Exception as exc:            # the session restored the colours; end cleanly
+            self.report({"ERROR"}, f"RadTR flashlight stopped, colours restored: {user_message(exc)}")
+            result = {"CANCELLED"}
         context.area.header_text_set(self.session.header if result == {"RUNNING_MODAL"} else None)
         context.area.tag_redraw()
         return result

@@ -148,6 +148,23 @@ def test_modal_handlers_change_the_light_and_escape_restores_bytes(solved, tmp_p
     assert any(not np.array_equal(a, b) for a, b in zip(colours(meshes2), before))
 
 
+def test_a_frame_that_fails_restores_the_colours_before_the_error_goes_on(solved, tmp_path):
+    """Any error in a frame (here a back-end that raises) leaves the meshes as they were."""
+    light, meshes, _, _ = flashlight_for(solved, 2, folder=tmp_path)
+    before = colours(meshes)
+    session = FlashlightSession(light, meshes, default_spot(solved.leaves, EYE, [0.2, -1, -0.1]))
+    session.update()
+    assert any(not np.array_equal(a, b) for a, b in zip(colours(meshes), before))
+
+    def broken(E):
+        raise ValueError("device lost")
+
+    light.backend.solve = broken
+    with pytest.raises(ValueError, match="device lost"):
+        session.handle("WHEELUPMOUSE")
+    assert all(np.array_equal(a, b) for a, b in zip(colours(meshes), before))
+
+
 def test_batch_poses_render_one_png_each(solved, tmp_path):
     job = solved
     light, meshes, _, _ = flashlight_for(job, 2, folder=tmp_path / "cache")

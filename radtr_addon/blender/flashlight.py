@@ -134,7 +134,11 @@ class FlashlightSession:
             return {"CANCELLED"}
         else:
             return {"PASS_THROUGH"}
-        self.update()
+        try:
+            self.update()
+        except Exception:                   # any failure of a frame: the colours go back first
+            self.meshes.restore(self.saved)
+            raise
         return {"RUNNING_MODAL"}
 
 
