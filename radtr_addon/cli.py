@@ -191,11 +191,6 @@ def spots_for(poses: list[list[dict]], scene) -> list:
     return [[spot_of(e) for e in p] for p in poses]
 
 
-def read_spots(path: str, scene) -> list:
-    """``spots_for(read_poses(path), scene)``."""
-    return spots_for(read_poses(path), scene)
-
-
 def cmd_flashlight(args) -> int:
     import bpy
 

@@ -83,14 +83,19 @@ def mesh_part(scene, patches: np.ndarray, crease_angle: float = CREASE_ANGLE) ->
     return MeshPart(patches, vertex_ids, local.reshape(-1, 3), normals)
 
 
+def vertex_weights(tris: np.ndarray, n_vertices: int, areas: np.ndarray):
+    """Sparse (v, t) matrix of the area-weighted mean at each vertex of per-triangle values:
+    W @ values; kept by whoever averages the same mesh again and again (the flashlight)."""
+    import scipy.sparse as sp
+
+    W = sp.csr_matrix((np.repeat(areas, 3), (tris.ravel(), np.repeat(np.arange(len(tris)), 3))),
+                      shape=(n_vertices, len(tris)))
+    return sp.diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W
+
+
 def vertex_average(tris: np.ndarray, n_vertices: int, values: np.ndarray, areas: np.ndarray):
     """Per-vertex area-weighted mean of per-triangle ``values`` (t, c)."""
-    w = np.repeat(areas, 3)
-    idx = tris.ravel()
-    total = np.bincount(idx, weights=w, minlength=n_vertices)
-    out = np.stack([np.bincount(idx, weights=w * np.repeat(values[:, c], 3), minlength=n_vertices)
-                    for c in range(values.shape[1])], axis=1)
-    return out / np.maximum(total, 1e-300)[:, None]
+    return vertex_weights(tris, n_vertices, areas) @ values
 
 
 class VertexRadiosity:

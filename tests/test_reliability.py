@@ -180,12 +180,10 @@ def test_cli_refuses_bad_settings_and_paths_before_any_work(cornell, tmp_path, c
 
 
 def test_flashlight_pose_with_nan_intensity_is_refused(tmp_path):
-    from geometry import cube
-
-    from radtr_addon.cli import read_spots
+    from radtr_addon.cli import read_poses
 
     with pytest.raises(RadTRError, match=r"poses.json: pose 0 has a NaN, infinite or negative value \(intensity nan"):
-        read_spots(poses(tmp_path, intensity=NAN), cube())
+        read_poses(poses(tmp_path, intensity=NAN))
 
 
 @pytest.mark.parametrize("text, message", [

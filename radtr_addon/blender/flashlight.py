@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..lowrank.flashlight import Spot
-from ..reconstruct import mesh_part
+from ..reconstruct import mesh_part, vertex_weights
 
 
 class LiveMeshes:
@@ -24,8 +24,6 @@ class LiveMeshes:
     kept between frames, so a frame is two products and two ``foreach_set`` a mesh."""
 
     def __init__(self, objects, leaves):
-        import scipy.sparse as sp
-
         self.leaves = leaves
         self.parts = []
         for obj in objects:
@@ -33,12 +31,9 @@ class LiveMeshes:
             ids = np.empty(len(mesh.polygons), dtype=np.int32)
             mesh.attributes["radtr_patch_index"].data.foreach_get("value", ids)
             part = mesh_part(leaves, ids.astype(np.int64))
-            t = len(part.patches)
-            weights = sp.csr_matrix((np.repeat(leaves.areas[part.patches], 3),
-                                     (part.local.ravel(), np.repeat(np.arange(t), 3))),
-                                    shape=(len(part.vertex_ids), t))
-            weights = sp.diags(1.0 / np.maximum(np.asarray(weights.sum(axis=1)).ravel(), 1e-300)) @ weights
-            buffers = (np.ones((t, 4), dtype=np.float32), np.ones((len(part.vertex_ids), 4), dtype=np.float32))
+            weights = vertex_weights(part.local, len(part.vertex_ids), leaves.areas[part.patches])
+            buffers = (np.ones((len(part.patches), 4), dtype=np.float32),
+                       np.ones((len(part.vertex_ids), 4), dtype=np.float32))
             self.parts.append((mesh, part, weights.astype(np.float32).tocsr(), buffers))
 
     def _attrs(self, mesh):

@@ -109,8 +109,11 @@ class Proximity:
         """Whether each receiver's centre lies on its element source's plane where that has
         covered cells (a box's bottom on the floor under it)."""
         nd = self.nodes
-        height = np.einsum("ij,ij->i", nd.center[rcv] - nd.center[src], nd.normal[src])
-        return self.covered[nd.root[src]] & (height <= self.tolerance)
+        out = self.covered[nd.root[src]]
+        i = np.flatnonzero(out)                         # few: only sources with covered cells
+        s, r = src[i], rcv[i]
+        out[i] = np.einsum("ij,ij->i", nd.center[r] - nd.center[s], nd.normal[s]) <= self.tolerance
+        return out
 
     def mixed(self, ids: np.ndarray) -> np.ndarray:
         """Whether each node of ``ids`` is mixed (an element, or a cluster: see the class)."""
