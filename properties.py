@@ -10,7 +10,7 @@ from bpy.props import (
     StringProperty,
 )
 
-from .radtr_addon.blender.pipeline import Settings
+from .radtr_addon.settings import Settings
 
 _D = Settings()
 
@@ -22,7 +22,7 @@ def _display_changed(self, context):
 
 
 def _scenario_weight_changed(self, context):
-    from .operators.solve import running
+    from .operators.session import running
     from .radtr_addon.blender.scenarios import show_blend
 
     job = running["last"]
@@ -129,6 +129,9 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     sky_step: FloatProperty(
         name="Dome Step", default=_D.sky_step, min=0.5, max=90.0,
         description="Degrees between dome points in azimuth and altitude: smaller is more exact and slower")
+    sky_resolution: IntProperty(
+        name="Sky Rays Across", default=_D.sky_resolution, min=16, soft_max=2048,
+        description="Parallel rays across the scene per dome point: more finds smaller patches in the sun")
     max_reflectance: FloatProperty(
         name="Max Reflectance", default=_D.max_reflectance, min=0.0, max=1.0,
         description="Reflectances above this are clamped, with a warning naming the material; 1 is "
@@ -161,16 +164,10 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                ("REPLACE", "Replace", "Give the source objects the subdivided meshes")])
 
     def to_settings(self) -> Settings:
-        return Settings(max_area=self.max_area, levels=self.levels,
-                        method=self.method, resolution=self.resolution - self.resolution % 2,
-                        rotate=self.rotate, split=self.split, split_level=self.split_level, rays=self.rays,
-                        solver=self.solver, user_solver=self.user_solver, quality=self.quality,
-                        tolerance=self.tolerance,
-                        max_iterations=self.max_iterations,
-                        precision=self.precision, ambient=self.ambient, gather_rays=self.gather_rays,
-                        max_reflectance=self.max_reflectance, exposure=self.exposure, mode=self.mode,
-                        sky=self.sky, sky_radiance=self.sky_radiance, sky_step=self.sky_step,
-                        cache_mb=self.cache_mb)
+        """The solve's Settings: every field of the schema from the property of its name."""
+        settings = Settings.of(self)
+        settings.resolution -= settings.resolution % 2        # a hemicube face needs an even count
+        return settings
 
 
 _register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_scenario, RADTR_PG_settings))

@@ -1,12 +1,17 @@
-"""Operators: Subdivide, Solve, Continue, Flashlight, research tools, Clear (thin: settings in, engine, report)."""
+"""Operators, one a module (thin: settings in, one engine call, report); ``session`` holds what they share."""
 import bpy
 
 from .clear import RADTR_OT_clear
 from .flashlight import RADTR_OT_flashlight
-from .scenarios import RADTR_OT_scenario_add, RADTR_OT_scenario_remove
-from .solve import RADTR_OT_resume, RADTR_OT_solve
+from .load_vector import RADTR_OT_load_vector
+from .patch_view import RADTR_OT_patch_view
+from .resume import RADTR_OT_resume
+from .scenario_add import RADTR_OT_scenario_add
+from .scenario_remove import RADTR_OT_scenario_remove
+from .solve import RADTR_OT_solve
 from .subdivide import RADTR_OT_subdivide
-from .tools import RADTR_OT_load_vector, RADTR_OT_patch_view, RADTR_OT_toggle_emission, RADTR_OT_view_from_patch
+from .toggle_emission import RADTR_OT_toggle_emission
+from .view_from_patch import RADTR_OT_view_from_patch
 
 CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_resume, RADTR_OT_flashlight, RADTR_OT_scenario_add,
            RADTR_OT_scenario_remove, RADTR_OT_patch_view, RADTR_OT_view_from_patch, RADTR_OT_load_vector,
@@ -18,7 +23,7 @@ _register, _unregister = bpy.utils.register_classes_factory(CLASSES)
 @bpy.app.handlers.persistent
 def _forget_jobs(*_):
     """A file opened or a new one made: the last solve's objects belong to the file left."""
-    from .solve import running
+    from .session import running
 
     running["last"] = None
 

@@ -5,17 +5,7 @@ import bpy
 from ..radtr_addon.blender.flashlight import FlashlightSession, default_spot, flashlight_for
 from ..radtr_addon.blender.scenarios import usable
 from ..radtr_addon.errors import RadTRError, user_message
-from .solve import running
-
-
-def mouse_ray(context, event):
-    """(origin, direction) of the view ray through the mouse."""
-    from bpy_extras import view3d_utils
-
-    region, rv3d = context.region, context.region_data
-    xy = (event.mouse_region_x, event.mouse_region_y)
-    return (view3d_utils.region_2d_to_origin_3d(region, rv3d, xy),
-            view3d_utils.region_2d_to_vector_3d(region, rv3d, xy))
+from .session import mouse_ray, running
 
 
 class RADTR_OT_flashlight(bpy.types.Operator):

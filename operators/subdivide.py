@@ -3,10 +3,10 @@ import bpy
 import numpy as np
 
 from ..radtr_addon.blender.extract import extract, source_objects
-from ..radtr_addon.blender.pipeline import auto_max_area
 from ..radtr_addon.blender.write import write_results
 from ..radtr_addon.errors import RadTRError
 from ..radtr_addon.hierarchy import subdivide
+from ..radtr_addon.settings import auto_max_area
 
 
 def patch_colours(n: int) -> np.ndarray:

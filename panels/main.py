@@ -2,7 +2,7 @@
 solve, and sub-panels for the form factors, the flashlight, lighting scenarios and views."""
 import bpy
 
-from ..operators.solve import running
+from ..operators.session import running
 
 
 class _RadTRPanel:
@@ -41,6 +41,7 @@ class RADTR_PT_main(_RadTRPanel, bpy.types.Panel):
         if s.sky != "none":
             col.prop(s, "sky_radiance")
             col.prop(s, "sky_step")
+            col.prop(s, "sky_resolution")
         col.prop(s, "max_reflectance")
         col.prop(s, "cache_mb")
         col.prop(s, "mode", expand=True)

@@ -7,99 +7,18 @@ same solve runs inside Blender as ``bpy.ops.radtr.solve()``.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 from pathlib import Path
 
-from .errors import InputFileError, RadTRError, SettingsError, user_message
-
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
-
-
-def bundled_scenes() -> list[str]:
-    return sorted(p.stem for p in SCENES_DIR.glob("*.py") if not p.stem.startswith("_"))
-
-
-def load_bundled(name: str):
-    """The module of bundled scene ``name`` (loaded by path: it is not part of the engine)."""
-    path = SCENES_DIR / f"{name}.py"
-    if not path.is_file():
-        raise RadTRError(f"no bundled scene '{name}' (have: {', '.join(bundled_scenes())})")
-    spec = importlib.util.spec_from_file_location(f"radtr_scene_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def open_scene(source: str) -> list[str]:
-    """Make ``source`` the current Blender file; returns warnings from loading it."""
-    import bpy
-
-    path = Path(source)
-    if path.suffix.lower() == ".blend":
-        if not path.is_file():
-            raise InputFileError(f"{path}: no such file")
-        try:
-            bpy.ops.wm.open_mainfile(filepath=str(path))
-        except RuntimeError as exc:
-            reason = str(exc).strip().removeprefix("Error: ")
-            raise InputFileError(f"{path}: not a .blend file Blender can read ({reason})") from None
-        return []
-    bpy.ops.wm.read_homefile(use_empty=True)
-    if path.suffix.lower() == ".obj":
-        from .blender.objfile import load_obj
-
-        return load_obj(path)
-    load_bundled(source).build(bpy)
-    return []
-
-
-def _settings_args(p: argparse.ArgumentParser):
-    from .blender.pipeline import Settings
-    from .solvers import SOLVERS
-
-    d = Settings()
-    p.add_argument("--max-area", type=float, default=d.max_area,
-                   help="largest patch area in scene units^2 (0: about 2,000 patches)")
-    p.add_argument("--levels", type=int, default=d.levels, help="subdivision rounds")
-    p.add_argument("--method", default=d.method, choices=("hemicube", "paraboloid", "embree"),
-                   help="form-factor method")
-    p.add_argument("--resolution", type=int, default=d.resolution, help="hemicube face / paraboloid disk pixels")
-    p.add_argument("--rotate", action="store_true", help="hemicube: random turn about each normal")
-    p.add_argument("--split", default=d.split, choices=("none", "uniform", "adaptive"), help="paraboloid split")
-    p.add_argument("--split-level", type=int, default=d.split_level, help="paraboloid uniform split N")
-    p.add_argument("--rays", type=int, default=d.rays, help="embree rays per patch")
-    p.add_argument("--solver", default=d.solver, choices=(*SOLVERS, "user", "hierarchical"),
-                   help="radiosity solver (hierarchical: adaptive patches and links, see --quality)")
-    p.add_argument("--quality", type=float, default=d.quality,
-                   help="hierarchical: error bound of a link / mean emitted exitance (smaller: finer, slower)")
-    p.add_argument("--user-solver", default=d.user_solver,
-                   help="with --solver user: module:function or file.py:function (see examples/)")
-    p.add_argument("--tolerance", type=float, default=d.tolerance, help="residual/emitted power to stop at")
-    p.add_argument("--iterations", type=int, default=d.max_iterations,
-                   help="most shots or sweeps (hierarchical: sweeps per round)")
-    p.add_argument("--precision", default=d.precision, choices=("float32", "float64"), help="accumulation")
-    p.add_argument("--ambient", action="store_true", help="shooting: show unshot light as an ambient term")
-    p.add_argument("--gather-rays", type=int, default=d.gather_rays,
-                   help="final gather of the vertex colours with this many rays per vertex (0: patch mean)")
-    p.add_argument("--sky", default=d.sky, choices=("none", "uniform", "cie"), help="apply a sky (sky form factors)")
-    p.add_argument("--sky-radiance", type=float, default=d.sky_radiance, help="uniform / CIE zenith radiance")
-    p.add_argument("--sky-step", type=float, default=d.sky_step, help="dome step in degrees (alpha = beta)")
-    p.add_argument("--max-reflectance", type=float, default=d.max_reflectance)
-    p.add_argument("--exposure", type=float, default=d.exposure)
-    p.add_argument("--cache-mb", type=int, default=d.cache_mb, help="memory budget for form factors and work arrays")
+from .blender.scenes import open_scene
+from .errors import RadTRError, SettingsError, user_message
+from .settings import add_arguments
 
 
 def settings_from(args):
-    from .blender.pipeline import Settings
+    from .settings import Settings
 
-    return Settings(max_area=args.max_area, levels=args.levels, method=args.method, resolution=args.resolution,
-                    rotate=args.rotate, split=args.split, split_level=args.split_level, rays=args.rays,
-                    solver=args.solver, user_solver=args.user_solver, quality=args.quality, tolerance=args.tolerance,
-                    max_iterations=args.iterations,
-                    precision=args.precision, ambient=args.ambient, gather_rays=args.gather_rays,
-                    max_reflectance=args.max_reflectance, exposure=args.exposure, sky=args.sky,
-                    sky_radiance=args.sky_radiance, sky_step=args.sky_step, cache_mb=args.cache_mb)
+    return Settings.of(args)
 
 
 def check_args(args):
@@ -270,7 +189,7 @@ def main(argv=None) -> int:
     p.add_argument("scene", help=".blend, .obj or bundled scene name")
     p.add_argument("--out", help="write the solved scene to this .blend")
     p.add_argument("--render", help="render the solved scene to this PNG")
-    _settings_args(p)
+    add_arguments(p)
     p.set_defaults(func=cmd_solve)
     f = sub.add_parser("flashlight", help="solve, then render one PNG per flashlight pose (low-rank)")
     f.add_argument("scene", help=".blend, .obj or bundled scene name")
@@ -283,13 +202,13 @@ def main(argv=None) -> int:
                    help="refine the level's clusters where the light is until there are this many")
     f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy, opencl or user")
     f.add_argument("--user-frame", default="", help="with --backend user: module:function called every frame")
-    _settings_args(f)
+    add_arguments(f)
     f.set_defaults(func=cmd_flashlight)
     e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V)")
     e.add_argument("scene", help=".blend, .obj or bundled scene name")
     e.add_argument("--out", required=True, help="file.npz, file.mat, or a prefix for the seed's .dat files")
     e.add_argument("--level", type=int, help="also the low-rank U and V of this hierarchy level")
-    _settings_args(e)
+    add_arguments(e)
     e.set_defaults(func=cmd_export)
     q = sub.add_parser("sequence", help="solve and render emission files <prefix><i><suffix>, i = from..to")
     q.add_argument("scene", help=".blend, .obj or bundled scene name")
@@ -298,7 +217,7 @@ def main(argv=None) -> int:
     q.add_argument("--from", dest="first", type=int, default=1)
     q.add_argument("--to", dest="last", type=int, required=True)
     q.add_argument("--out-dir", default="out/sequence")
-    _settings_args(q)
+    add_arguments(q)
     q.set_defaults(func=cmd_sequence)
     w = sub.add_parser("watch", help="solve and render an emission file each time another program rewrites it")
     w.add_argument("scene", help=".blend, .obj or bundled scene name")
@@ -306,7 +225,7 @@ def main(argv=None) -> int:
     w.add_argument("--out-dir", default="out/watch")
     w.add_argument("--polls", type=int, default=1_000_000, help="how many times to look (Ctrl+C stops)")
     w.add_argument("--interval", type=float, default=0.5, help="seconds between looks")
-    _settings_args(w)
+    add_arguments(w)
     w.set_defaults(func=cmd_sequence)
     b = sub.add_parser("bench", help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")

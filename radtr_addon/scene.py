@@ -14,6 +14,8 @@ from .errors import SceneError
 
 #: Triangles whose area is below this fraction of the mean area are degenerate.
 DEGENERATE_AREA_FRACTION = 1e-12
+#: The largest value a float32 colour attribute holds.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def triangle_geometry(vertices: np.ndarray, triangles: np.ndarray):
@@ -24,6 +26,16 @@ def triangle_geometry(vertices: np.ndarray, triangles: np.ndarray):
     with np.errstate(invalid="ignore", divide="ignore"):
         normals = cross / twice_area[:, None]
     return normals, 0.5 * twice_area
+
+
+def check_writable(values: np.ndarray, label):
+    """Raise SceneError when a row of ``values`` (k, 3) is NaN or beyond float32; ``label(i)`` names row i."""
+    bad = ~(np.abs(values) <= FLOAT32_MAX).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        shown = ", ".join(f"{v:.3g}" for v in values[i])
+        raise SceneError(f"{label(i)}: ({shown}) W/m^2 is NaN or beyond what a colour attribute holds "
+                         f"({FLOAT32_MAX:.3g}), {int(bad.sum())} in all; lower the emission; nothing was written")
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Building blocks the bundled scenes share: materials, meshes, sun, sky and camera.
 
-Scenes are loaded by path (``radtr_addon.cli.load_bundled``), so each loads this file the
+Scenes are loaded by path (``radtr_addon.blender.scenes.load_bundled``), so each loads this file the
 same way, beside itself (``load``).
 """
 from __future__ import annotations

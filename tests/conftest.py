@@ -47,7 +47,7 @@ def blend(addon):
 @pytest.fixture
 def cornell(blend):
     """The bundled Cornell box in a fresh file; returns ``bpy``."""
-    from radtr_addon.cli import load_bundled
+    from radtr_addon.blender.scenes import load_bundled
 
     load_bundled("cornell_box").build(blend)
     return blend

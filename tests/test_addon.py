@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from radtr_addon.blender.extract import HIDDEN_SOURCE, RESULT_COLLECTION
-from radtr_addon.blender.pipeline import Settings, SolveJob
+from radtr_addon.blender.pipeline import SolveJob
 from radtr_addon.errors import SceneError
+from radtr_addon.settings import Settings
 
 
 def small(bpy, **kw):
@@ -111,9 +112,9 @@ def test_opening_another_file_forgets_the_last_solve(addon, cornell):
     """Scenarios, the flashlight and Continue work on the last solve's objects: once another
     file is opened they are gone, so the last solve is forgotten (not used stale)."""
     assert cornell.ops.radtr.solve() == {"FINISHED"}
-    assert addon.operators.solve.running["last"] is not None
+    assert addon.operators.session.running["last"] is not None
     cornell.ops.wm.read_homefile(use_empty=True)
-    assert addon.operators.solve.running["last"] is None
+    assert addon.operators.session.running["last"] is None
     assert not cornell.ops.radtr.scenario_add.poll()
 
 
@@ -167,9 +168,12 @@ def test_empty_scene_is_refused(blend):
 def test_subdivide_shows_patches(cornell):
     bpy = cornell
     small(bpy)
+    sources = [o for o in bpy.context.scene.objects if o.type == "MESH"]
+    source_area = sum(sum(p.area for p in o.data.polygons) for o in sources)   # Cornell: unscaled meshes
     assert bpy.ops.radtr.subdivide() == {"FINISHED"}
-    n = sum(len(o.data.polygons) for o in bpy.data.collections[RESULT_COLLECTION].objects)
-    assert n > 200
+    areas = np.array([p.area for o in bpy.data.collections[RESULT_COLLECTION].objects for p in o.data.polygons])
+    assert areas.max() <= 0.004 * (1 + 1e-6)                   # every patch within Max Patch Area
+    np.testing.assert_allclose(areas.sum(), source_area, rtol=1e-5)   # and together the whole surface
 
 
 def test_continue_goes_on_from_the_iteration_cap(addon, cornell):
@@ -177,7 +181,7 @@ def test_continue_goes_on_from_the_iteration_cap(addon, cornell):
     small(bpy, max_iterations=40, tolerance=1e-4)
     assert bpy.ops.radtr.resume.poll() is False          # nothing to continue yet
     assert bpy.ops.radtr.solve() == {"FINISHED"}
-    job = addon.operators.solve.running["last"]
+    job = addon.operators.session.running["last"]
     assert (job.result.iterations, job.result.converged) == (40, False)
     first = list(job.result.residual_history)
     floor = bpy.data.objects["floor_radtr"].data
@@ -333,7 +337,7 @@ def test_load_vector_shows_radiosity_and_refuses_what_does_not_fit(addon, cornel
     bpy = cornell
     small(bpy)
     bpy.ops.radtr.solve()
-    job = addon.operators.solve.running["last"]
+    job = addon.operators.session.running["last"]
     floor = bpy.data.objects["floor_radtr"].data
 
     def floor_colours():

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from radtr_addon.cli import load_bundled
+from radtr_addon.blender.scenes import load_bundled
 
 EMITTERS = {"furnished_room": {"Lamp"}, "atrium": {"Lamps"}}
 

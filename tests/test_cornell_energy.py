@@ -6,7 +6,8 @@ The escape is measured twice, independently: once as the hemicube pixels that se
 import numpy as np
 import pytest
 
-from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.blender.pipeline import solve
+from radtr_addon.settings import Settings
 
 
 def add_window(bpy):
@@ -30,17 +31,21 @@ SETTINGS = Settings(max_area=0.003, levels=1, resolution=64, tolerance=1e-3)
 def open_box(addon):
     import bpy
 
-    from radtr_addon.cli import load_bundled
+    from radtr_addon.blender.scenes import load_bundled
 
     bpy.ops.wm.read_homefile(use_empty=True)
     load_bundled("cornell_box").build(bpy)
-    return solve(bpy.context, SETTINGS, log=lambda *_: None).result
+    return solve(bpy.context, SETTINGS, log=lambda *_: None)
 
 
 def test_books_balance(open_box):
-    r = open_box
+    r, leaves = open_box.result, open_box.leaves
     assert r.converged
     assert r.balance_error() < 1e-9
+    # absorbed again, from the radiosity the solve shows: H = (B - E) / rho, absorbed = sum (1 - rho) H A
+    H = (r.B - leaves.emission) / leaves.rho
+    absorbed = ((1 - leaves.rho) * H * leaves.areas[:, None]).sum(axis=0)
+    np.testing.assert_allclose(absorbed, r.absorbed, rtol=1e-9)
     assert np.all(r.escaped > 0.2 * r.emitted)          # a large part leaves by the open side
     # only floor patches straddling a block's footprint see the inside of the block
     assert np.all(r.blocked < 5e-3 * r.emitted)
@@ -50,7 +55,7 @@ def test_escape_matches_a_black_window(open_box, cornell):
     bpy = cornell
     add_window(bpy)
     job = solve(bpy.context, SETTINGS, log=lambda *_: None)
-    r = job.result
+    r, open_box = job.result, open_box.result
     window = job.leaves.object_index == [s.name for s in job.extraction.objects].index("window")
     through_window = (r.irradiance[window] * job.leaves.areas[window, None]).sum(axis=0)
     absorbed_walls = ((1 - job.leaves.rho) * r.irradiance * job.leaves.areas[:, None])[~window].sum(axis=0)

@@ -2,17 +2,29 @@
 
 Cycles bakes reflected radiance (DIFFUSE: direct + indirect, times colour) at the vertices
 of RadTR's result meshes, with the scene's own materials; RadTR's reflected radiance of a
-patch is rho H / pi. Per surface, the area-weighted means agree within 5% (the issue asks 10%; measured 0.1-2.2%).
+patch is rho H / pi. Per surface and channel, the area-weighted means agree within 5%; per
+vertex, the radiance RadTR writes (``radtr_radiosity`` / pi) differs from the bake by
+``PER_VERTEX_RMS`` at most (RMS over the vertices, relative to each surface's mean; Cycles'
+own noise at 64 samples is part of it).
 """
 import numpy as np
 
-from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.blender.pipeline import solve
+from radtr_addon.settings import Settings
+
+PER_VERTEX_RMS = 0.30
+
+
+def vertex_colors(mesh, name) -> np.ndarray:
+    """(v, 3) RGB of POINT colour attribute ``name``."""
+    col = np.empty(len(mesh.vertices) * 4, dtype=np.float32)
+    mesh.color_attributes[name].data.foreach_get("color", col)
+    return col.reshape(-1, 4)[:, :3].astype(float)
 
 
 def vertex_area_mean(mesh, name):
     n = len(mesh.vertices)
-    col = np.empty(n * 4, dtype=np.float32)
-    mesh.color_attributes[name].data.foreach_get("color", col)
+    col = vertex_colors(mesh, name)
     co = np.empty(n * 3)
     mesh.vertices.foreach_get("co", co)
     co = co.reshape(-1, 3)
@@ -22,7 +34,7 @@ def vertex_area_mean(mesh, name):
     a, b, c = (co[tris[:, k]] for k in range(3))
     area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
     w = np.bincount(tris.ravel(), np.repeat(area / 3, 3), minlength=n)
-    return (col.reshape(-1, 4)[:, :3] * w[:, None]).sum(axis=0) / w.sum()
+    return (col * w[:, None]).sum(axis=0) / w.sum()
 
 
 def test_surface_means_match_cycles(cornell):
@@ -47,8 +59,14 @@ def test_surface_means_match_cycles(cornell):
         obj.select_set(True)
     bpy.context.view_layer.objects.active = targets[0][1]
     bpy.ops.object.bake(type="DIFFUSE", pass_filter={"DIRECT", "INDIRECT", "COLOR"}, target="VERTEX_COLORS")
+    errors = []
     for k, obj in targets:
         sel = leaves.object_index == k
         radtr = (leaves.rho[sel] * H[sel] * leaves.areas[sel, None]).sum(axis=0) / leaves.areas[sel].sum() / np.pi
         cycles = vertex_area_mean(obj.data, "bake")
-        assert abs(radtr.sum() / cycles.sum() - 1) < 0.05, (obj.name, radtr, cycles)
+        np.testing.assert_allclose(radtr, cycles, rtol=0.05, err_msg=obj.name)     # each channel
+        shown, baked = vertex_colors(obj.data, "radtr_radiosity") / np.pi, vertex_colors(obj.data, "bake")
+        errors.append((shown - baked).ravel() / max(baked.mean(), 1e-12))
+    rms = np.sqrt(np.mean(np.concatenate(errors) ** 2))
+    print(f"per-vertex RMS error against Cycles ({cy.samples} samples): {rms:.1%}")
+    assert rms < PER_VERTEX_RMS

@@ -5,8 +5,9 @@ import pytest
 
 from radtr_addon.bench.skeleton import max_area_for
 from radtr_addon.blender.flashlight import FlashlightSession, default_spot, flashlight_for, render_poses
-from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.blender.pipeline import solve
 from radtr_addon.lowrank import build, build_cut, refined_cut
+from radtr_addon.settings import Settings
 
 
 @pytest.fixture(scope="module")
@@ -16,7 +17,7 @@ def solved(addon):
     import bpy
 
     from radtr_addon.blender.extract import extract, source_objects
-    from radtr_addon.cli import load_bundled
+    from radtr_addon.blender.scenes import load_bundled
 
     bpy.ops.wm.read_homefile(use_empty=True)
     load_bundled("cornell_box").build(bpy)
@@ -214,7 +215,7 @@ def test_stored_scenarios_blend_in_the_result_meshes_and_pins_add_spots(addon, s
 
     from radtr_addon.blender.scenarios import usable
 
-    running = addon.operators.solve.running
+    running = addon.operators.session.running
     running["last"], job = solved, solved
     try:
         meshes = flashlight_for(job, 2, folder=tmp_path)[1]

@@ -102,7 +102,7 @@ def cornell_patches(addon):
     import bpy
 
     from radtr_addon.blender.extract import extract, source_objects
-    from radtr_addon.cli import load_bundled
+    from radtr_addon.blender.scenes import load_bundled
 
     bpy.ops.wm.read_homefile(use_empty=True)
     load_bundled("cornell_box").build(bpy)
@@ -138,7 +138,8 @@ def test_reciprocity_between_cornell_surfaces(gpu, cornell_patches, settings):
 
 def test_three_methods_light_the_cornell_box_alike(cornell):
     """Independent methods (GPU hemicube, GPU paraboloid, CPU rays) give the same surface radiosity."""
-    from radtr_addon.blender.pipeline import Settings, SolveJob
+    from radtr_addon.blender.pipeline import SolveJob
+    from radtr_addon.settings import Settings
 
     ctx = cornell.context
     means = {}

@@ -174,7 +174,7 @@ def cornell(addon):
     import bpy
 
     from radtr_addon.blender.extract import extract, source_objects
-    from radtr_addon.cli import load_bundled
+    from radtr_addon.blender.scenes import load_bundled
     from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
     from radtr_addon.hierarchy import subdivide
     from radtr_addon.solvers import solve
@@ -218,14 +218,14 @@ def test_cornell_box_agrees_with_a_uniform_direct_solve(cornell):
 def test_solve_operator_writes_adaptive_leaves(addon, blend):
     """Through ``bpy.ops.radtr.solve``: a face per leaf in the result meshes, finite vertex
     colours, and Quality 0.03 makes more leaves than 0.1."""
-    from radtr_addon.cli import load_bundled
+    from radtr_addon.blender.scenes import load_bundled
 
     bpy = blend
     load_bundled("cornell_box").build(bpy)
     s = bpy.context.scene.radtr
     s.solver, s.quality = "hierarchical", 0.1
     assert bpy.ops.radtr.solve() == {"FINISHED"}
-    running = addon.operators.solve.running
+    running = addon.operators.session.running
     job = running["last"]
     coarse = job.leaves.n
     res = job.adaptive

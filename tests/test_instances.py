@@ -2,7 +2,8 @@
 import numpy as np
 
 from radtr_addon.blender.extract import RESULT_COLLECTION
-from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.blender.pipeline import solve
+from radtr_addon.settings import Settings
 
 
 def test_a_hundred_instances_solve_and_are_counted(blend):

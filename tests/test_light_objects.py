@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from radtr_addon.blender.pipeline import Settings, solve
+from radtr_addon.blender.pipeline import solve
+from radtr_addon.settings import Settings
 
 FAST = dict(method="embree", rays=64, tolerance=1e-3)
 

@@ -7,8 +7,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from radtr_addon.blender.pipeline import Settings, SolveJob, solve
+from radtr_addon.blender.pipeline import SolveJob, solve
 from radtr_addon.errors import InputFileError, RadTRError, SceneError, SettingsError
+from radtr_addon.settings import Settings
 
 FAST = dict(max_area=0.01, method="embree", rays=16, tolerance=1e-2)
 
@@ -73,7 +74,7 @@ def test_replace_that_succeeds_keeps_each_object_in_place(cornell):
 
 
 def test_modal_solve_that_raises_is_cleared_and_reported(addon, cornell):
-    import radtr.operators.solve as op
+    import radtr.operators.session as op
 
     reports = []
     wm = SimpleNamespace(event_timer_remove=quiet, progress_end=quiet, progress_update=quiet)
@@ -85,8 +86,8 @@ def test_modal_solve_that_raises_is_cleared_and_reported(addon, cornell):
 
     op.running["job"] = SimpleNamespace(advance=advance)
     modal = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append((kind, msg)),
-                            _end=lambda ctx: op._ModalSolve._end(modal, ctx))
-    assert op._ModalSolve.modal(modal, context, SimpleNamespace(type="TIMER")) == {"CANCELLED"}
+                            _end=lambda ctx: op.ModalSolve._end(modal, ctx))
+    assert op.ModalSolve.modal(modal, context, SimpleNamespace(type="TIMER")) == {"CANCELLED"}
     assert op.running["job"] is None
     assert reports == [({"ERROR"}, reports[0][1])]
     assert reports[0][1].startswith("unexpected error: ZeroDivisionError: division by zero (test_reliability.py:")
@@ -370,7 +371,7 @@ def test_mtl_reference_after_a_utf8_bom_is_honoured(blend, tmp_path):
 def test_unreadable_blend_files_are_an_input_file_error(cornell, tmp_path, kind):
     import os
 
-    from radtr_addon.cli import open_scene
+    from radtr_addon.blender.scenes import open_scene
 
     bpy = cornell
     good = tmp_path / "good.blend"

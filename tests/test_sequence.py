@@ -3,9 +3,10 @@ program rewrites (half-written versions are never loaded)."""
 import numpy as np
 import pytest
 
-from radtr_addon.blender.pipeline import Settings, solve
-from radtr_addon.blender.sequence import render_sequence, solve_with_emission, watch
+from radtr_addon.blender.pipeline import solve
+from radtr_addon.blender.sequence import render_sequence, watch
 from radtr_addon.errors import InputFileError
+from radtr_addon.settings import Settings
 
 
 @pytest.fixture
@@ -24,7 +25,7 @@ def test_sequence_renders_each_file_and_scales_with_it(job, tmp_path):
     E = job.leaves.emission
     for i, scale in ((1, 1.0), (2, 2.0)):
         np.savetxt(tmp_path / f"es_{i}.dat", E * scale)
-    np.testing.assert_allclose(solve_with_emission(job, 2 * E), 2 * job.result.B, rtol=1e-9)
+    np.testing.assert_allclose(job.with_emission(2 * E), 2 * job.result.B, rtol=1e-9)
     before = colours(job)
     paths = render_sequence(job, str(tmp_path / "es_"), 1, 2, tmp_path / "frames", suffix=".dat")
     assert [p.name for p in paths] == ["frame_0001.png", "frame_0002.png"]

@@ -60,7 +60,8 @@ def test_bad_steps():
 def test_apply_sky_in_a_solve(blend):
     from test_light_objects import add_plane
 
-    from radtr_addon.blender.pipeline import Settings, solve
+    from radtr_addon.blender.pipeline import solve
+    from radtr_addon.settings import Settings
     from radtr_addon.sky import dome_error
 
     bpy = blend

@@ -91,7 +91,6 @@ def test_white_furnace(method, rho, spread):
         np.testing.assert_allclose(r.B, exact, rtol=1e-6)
     else:
         assert power_error(s, r.B, exact) <= tol
-    assert r.balance_error() < 1e-9
 
 
 def test_closed_scene_with_reflectance_one_is_refused_before_solving():
@@ -168,7 +167,6 @@ def test_solvers_agree_and_conserve_energy_with_non_reciprocal_rows(method):
     escaped = ((1 - F.sum(axis=1))[:, None] * out).sum(axis=0)
     np.testing.assert_allclose(absorbed + escaped, r.emitted, rtol=1e-5)
     np.testing.assert_allclose(r.escaped, escaped, rtol=1e-5)
-    assert r.balance_error() < 1e-9
 
 
 def test_gathering_streams_rows_that_do_not_fit():

@@ -1,7 +1,8 @@
 """Reflectance from an Image Texture and from a Color Attribute node, per patch."""
 import numpy as np
 
-from radtr_addon.blender.pipeline import Settings, SolveJob
+from radtr_addon.blender.pipeline import SolveJob
+from radtr_addon.settings import Settings
 
 FAST = dict(method="embree", rays=16, tolerance=1e-2)
 

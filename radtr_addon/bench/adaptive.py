@@ -79,8 +79,9 @@ def solve_scene(scene: str, label: str, options: dict):
     import bpy
 
     from ..blender.extract import extract, source_objects
-    from ..blender.pipeline import Settings, auto_max_area, solve
-    from ..cli import open_scene
+    from ..blender.pipeline import solve
+    from ..blender.scenes import open_scene
+    from ..settings import Settings, auto_max_area
 
     open_scene(scene)
     options = dict(options)

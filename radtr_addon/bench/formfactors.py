@@ -41,7 +41,7 @@ def cornell_patches(target: int):
     import bpy
 
     from ..blender.extract import extract, source_objects
-    from ..cli import load_bundled
+    from ..blender.scenes import load_bundled
     from ..hierarchy import subdivide
     from .skeleton import max_area_for
 

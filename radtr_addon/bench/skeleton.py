@@ -29,8 +29,9 @@ def cornell_job(target: int, levels: int = 1, **settings):
     import bpy
 
     from ..blender.extract import extract, source_objects
-    from ..blender.pipeline import Settings, SolveJob
-    from ..cli import load_bundled
+    from ..blender.pipeline import SolveJob
+    from ..blender.scenes import load_bundled
+    from ..settings import Settings
 
     bpy.ops.wm.read_homefile(use_empty=True)
     load_bundled("cornell_box").build(bpy)

@@ -44,8 +44,8 @@ def cornell_job(target: int, settings: FormFactorSettings, solver: str = "direct
     """A SolveJob of the Cornell box at about ``target`` triangles with these form factors."""
     from .skeleton import cornell_job as job
 
-    return job(target, method=settings.method, resolution=settings.resolution, split=settings.split,
-               rays=settings.rays, solver=solver, tolerance=1e-9)
+    knobs = ("method", "resolution", "rotate", "split", "split_level", "rays")
+    return job(target, **{k: getattr(settings, k) for k in knobs}, solver=solver, tolerance=1e-9)
 
 
 # -- the seed's table --------------------------------------------------------------------------

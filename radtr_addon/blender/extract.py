@@ -14,14 +14,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SceneError
+from ..pipeline import SceneInput
 from ..scene import DEGENERATE_AREA_FRACTION, PatchScene
+from ..settings import Settings
 from .materials import read_material
 
 RESULT_COLLECTION = "RadTR"
 #: Custom property set on source objects that a solve hid behind its results.
 HIDDEN_SOURCE = "radtr_hidden_source"
-#: Reflectances above this are clamped (with a warning naming the material).
-MAX_REFLECTANCE = 0.95
 
 
 @dataclass
@@ -36,15 +36,10 @@ class Source:
 
 
 @dataclass
-class Extraction:
-    scene: PatchScene
-    objects: list          # Sources, indexed by PatchScene.object_index
-    warnings: list[str] = field(default_factory=list)
-    uv: np.ndarray | None = None            # (t, 3, 2) corner UVs of the triangles (NaN: none)
-    corner_color: np.ndarray | None = None  # (t, 3, 3) corner colours (NaN: none)
-    textures: dict = field(default_factory=dict)    # material index -> (h, w, 3) image
-    attributes: dict = field(default_factory=dict)  # material index -> colour attribute name
-    two_sided: set = field(default_factory=set)     # material indices that emit from both sides
+class Extraction(SceneInput):
+    """The engine's SceneInput of a Blender scene, and the Sources it was read from."""
+
+    objects: list = field(default_factory=list)     # Sources, indexed by PatchScene.object_index
 
 
 def result_objects(bl_scene) -> list:
@@ -90,7 +85,7 @@ def source_objects(bl_scene, view_layer) -> list[Source]:
     return out
 
 
-def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Extraction:
+def extract(depsgraph, objects, max_reflectance: float = Settings.max_reflectance) -> Extraction:
     """PatchScene of ``objects`` evaluated in ``depsgraph``; warnings say what was changed."""
     if not objects:
         raise SceneError("no visible mesh objects to solve")
@@ -148,7 +143,7 @@ def extract(depsgraph, objects, max_reflectance: float = MAX_REFLECTANCE) -> Ext
     textures = {i: p.texture for i, p in enumerate(mat_props) if p.texture is not None}
     attributes = {i: p.attribute for i, p in enumerate(mat_props) if p.attribute is not None}
     two_sided = {i for i, p in enumerate(mat_props) if p.two_sided}
-    return Extraction(scene, list(objects), warnings, uv, colors, textures, attributes, two_sided)
+    return Extraction(scene, warnings, uv, colors, textures, attributes, two_sided, objects=list(objects))
 
 
 def _clamp_reflectance(rho, names, limit, warnings):

@@ -2,7 +2,7 @@
 
 A vector file holds one emission per patch of the solve it was written for (same scene and
 settings, hence the same patches: ``exchange``), and is checked by ``exchange.load_vector``.
-Each is solved with the job's solver and form factors (rows computed once, then cached), shown
+Each is solved with the job's solver and form factors (``Solve.with_emission``) (rows computed once, then cached), shown
 in the result meshes and rendered to a PNG; the meshes' colours are restored afterwards.
 ``watch`` reloads a file whenever another program rewrites it: a new version is read only when
 its size and time stamp have stayed the same for one polling interval, a text file ends with
@@ -19,25 +19,12 @@ import numpy as np
 
 from ..errors import InputFileError
 from ..exchange import load_vector
-from ..solvers import make_solver
 from .flashlight import LiveMeshes
 from .render import render_png
 
 
-def solve_with_emission(job, E: np.ndarray) -> np.ndarray:
-    """B for emission E (n, 3) on the job's patches, with its solver settings and cached rows."""
-    leaves = job.leaves.subset(np.ones(job.leaves.n, dtype=bool))
-    leaves.emission = np.asarray(E, dtype=float)
-    s = job.settings
-    solver = make_solver(s.solver, leaves, job.rows, tol=s.tolerance, max_iterations=s.max_iterations,
-                         dtype=s.precision, user=s.user_solver)
-    while not solver.step(64):
-        pass
-    return solver.result().B
-
-
 def _show(job, meshes, E, png: Path) -> Path:
-    meshes.write(solve_with_emission(job, E))
+    meshes.write(job.with_emission(E))
     render_png(job.bl_scene, str(png.resolve()))
     return png
 
@@ -111,5 +98,5 @@ def toggle_patch(job, origin, direction, emission: np.ndarray) -> tuple[int, np.
     if i < 0:
         return i, emission
     E = toggle_emission(emission, i)
-    LiveMeshes(job.objects, job.leaves).write(solve_with_emission(job, E))
+    LiveMeshes(job.objects, job.leaves).write(job.with_emission(E))
     return i, E

@@ -18,11 +18,10 @@ import math
 import numpy as np
 
 from ..reconstruct import MeshPart, VertexRadiosity, mesh_part
+from ..scene import check_writable
 from .extract import HIDDEN_SOURCE, RESULT_COLLECTION, bpy_collection
 
 DISPLAY_MATERIAL = "RadTR Radiosity"
-#: The largest value a FLOAT_COLOR attribute holds.
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 EMISSION_NODE = "RadTR Emission"
 
 
@@ -115,18 +114,6 @@ def set_display(bl_scene, display: str, exposure: float):
     coll = bpy_collection(bl_scene)
     for obj in (coll.objects if coll else []):
         obj.show_wire = display == "outlines"
-
-
-def check_writable(values: np.ndarray, label):
-    """Raise SceneError when a row of ``values`` (k, 3) is NaN or beyond float32; ``label(i)`` names row i."""
-    from ..errors import SceneError
-
-    bad = ~(np.abs(values) <= FLOAT32_MAX).all(axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        shown = ", ".join(f"{v:.3g}" for v in values[i])
-        raise SceneError(f"{label(i)}: ({shown}) W/m^2 is NaN or beyond what a colour attribute holds "
-                         f"({FLOAT32_MAX:.3g}), {int(bad.sum())} in all; lower the emission; nothing was written")
 
 
 def write_results(bl_scene, extraction, leaves, B, exposure=1.0, mode="COPY", vertex_values=None) -> list:

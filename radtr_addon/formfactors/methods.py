@@ -15,6 +15,10 @@ from .rows import RowCache
 
 METHODS = ("hemicube", "paraboloid", "embree")
 GPU_METHODS = ("hemicube", "paraboloid")
+#: Paraboloid: how each triangle is split before projection (see ``paraboloid``).
+SPLIT_MODES = ("none", "uniform", "adaptive")
+#: Paraboloid adaptive split: the largest arc-chord gap, in disk radii.
+DEFAULT_SPLIT_TOLERANCE = 2e-3
 
 
 @dataclass
@@ -22,11 +26,11 @@ class FormFactorSettings:
     """Method and knobs; the ones a method does not use are ignored."""
 
     method: str = "hemicube"
-    resolution: int = 128          # hemicube pixels across the full face / paraboloid disk
+    resolution: int = 64           # hemicube pixels across the full face / paraboloid disk
     rotate: bool = False           # hemicube: random turn about the normal per patch
     split: str = "adaptive"        # paraboloid: none | uniform | adaptive
     split_level: int = 4           # paraboloid uniform: N x N sub-triangles
-    split_tolerance: float = 2e-3  # paraboloid adaptive: largest arc-chord gap (disk radii)
+    split_tolerance: float = DEFAULT_SPLIT_TOLERANCE
     rays: int = 1024               # embree: rays per row
     seed: int = 0                  # embree jitter and hemicube rotation
     origins: str = "area"          # embree: ray origins over the patch or at its centroid
@@ -40,8 +44,6 @@ class FormFactorSettings:
         return f"embree {self.rays} rays"
 
     def validate(self):
-        from .paraboloid import SPLIT_MODES
-
         if self.method not in METHODS:
             raise SettingsError(f"form-factor method must be one of {', '.join(METHODS)}, got '{self.method}'")
         if self.method == "hemicube" and (self.resolution < 2 or self.resolution % 2):

@@ -19,6 +19,8 @@ from .shooting import ShootingSolver
 
 #: Solver names, as the CLI, the Scene settings and the benchmarks spell them ("user": ``user``).
 SOLVERS = ("shooting", "jacobi", "gauss_seidel", "direct")
+#: Every solver a solve can name: these, your own function, and adaptive links (``hierarchical``).
+ALL_SOLVERS = (*SOLVERS, "user", "hierarchical")
 
 #: Peak bytes per patch from subdivision to the first solver steps, form-factor rows kept in
 #: the cache and a direct solve's factors excluded (each checked against the budget on its

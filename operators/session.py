@@ -1,0 +1,80 @@
+"""What the operators share: the solve running in this session and the last one finished,
+the modal runner of Solve and Continue, and the view ray through the mouse."""
+
+from ..radtr_addon.errors import user_message
+
+#: The solve running in this session (read by the panel's live readout) and the last one finished.
+running = {"job": None, "last": None}
+
+
+def last_job(op):
+    """The last finished solve, or None after reporting that there is none."""
+    job = running["last"]
+    if job is None:
+        op.report({"ERROR"}, "RadTR: solve first; the tools work on the last solve's patches")
+    return job
+
+
+def report_warnings(op, job):
+    for w in job.stats.warnings[:8]:
+        op.report({"WARNING"}, w)
+
+
+def mouse_ray(context, event):
+    """(origin, direction) of the view ray through the mouse."""
+    from bpy_extras import view3d_utils
+
+    region, rv3d = context.region, context.region_data
+    xy = (event.mouse_region_x, event.mouse_region_y)
+    return (view3d_utils.region_2d_to_origin_3d(region, rv3d, xy),
+            view3d_utils.region_2d_to_vector_3d(region, rv3d, xy))
+
+
+class ModalSolve:
+    """Runs a SolveJob from a timer: progress bar, status-bar readout, ESC cancels."""
+
+    def _start(self, context, job):
+        running["job"] = job
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        job = running["job"]
+        if event.type == "ESC":
+            self._end(context)
+            self.report({"WARNING"}, "RadTR: solve cancelled; nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        going_on = False
+        try:
+            done = job.advance(0.1)
+            context.window_manager.progress_update(int(100 * job.fraction))
+            context.workspace.status_text_set(f"RadTR: {job.readout}; ESC cancels")
+            for area in context.screen.areas:
+                if area.type == "VIEW_3D":
+                    area.tag_redraw()
+            if not done:
+                going_on = True
+                return {"RUNNING_MODAL"}
+            job.finish()
+        except Exception as exc:
+            self.report({"ERROR"}, user_message(exc))
+            return {"CANCELLED"}
+        finally:
+            if not going_on:
+                self._end(context)
+        running["last"] = job
+        report_warnings(self, job)
+        self.report({"INFO"}, f"RadTR: {job.summary()}")
+        return {"FINISHED"}
+
+    def _end(self, context):
+        running["job"] = None
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        context.workspace.status_text_set(None)
