@@ -91,7 +91,7 @@ def test_modal_solve_that_raises_is_cleared_and_reported(addon, cornell):
     assert op.running["job"] is None
     assert reports == [({"ERROR"}, reports[0][1])]
     assert reports[0][1].startswith("unexpected error: ZeroDivisionError: division by zero (test_reliability.py:")
-    assert op.RADTR_OT_solve.poll(cornell.context)
+    assert addon.operators.solve.RADTR_OT_solve.poll(cornell.context)
 
 
 # -- bad settings ------------------------------------------------------------------------------
