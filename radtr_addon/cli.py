@@ -1,7 +1,8 @@
 """Command line: ``python -m radtr_addon solve SCENE ...`` and ``... bench NAME``.
 
-SCENE is a .blend file, an .obj file (read by Blender's own importer) or the name of a
-bundled scene in ``scenes/`` (e.g. ``cornell_box``). Runs on the PyPI ``bpy`` module; the
+SCENE is a .blend file, a scene file Blender imports (.obj, .ply, .stl, .gltf/.glb, .fbx,
+.usd*, .abc: Blender's own importers) or the name of a bundled scene in ``scenes/`` (e.g.
+``cornell_box``). Runs on the PyPI ``bpy`` module; the
 same solve runs inside Blender as ``bpy.ops.radtr.solve()``.
 """
 from __future__ import annotations
@@ -13,6 +14,8 @@ from pathlib import Path
 from .blender.scenes import open_scene
 from .errors import RadTRError, SettingsError, user_message
 from .settings import add_arguments
+
+SCENE_HELP = ".blend, .obj, .ply, .stl, .gltf, .glb, .fbx, .usd(a/c/z), .abc or a bundled scene name"
 
 
 def settings_from(args):
@@ -186,13 +189,13 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m radtr_addon", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("solve", help="solve a scene and write the result")
-    p.add_argument("scene", help=".blend, .obj or bundled scene name")
+    p.add_argument("scene", help=SCENE_HELP)
     p.add_argument("--out", help="write the solved scene to this .blend")
     p.add_argument("--render", help="render the solved scene to this PNG")
     add_arguments(p)
     p.set_defaults(func=cmd_solve)
     f = sub.add_parser("flashlight", help="solve, then render one PNG per flashlight pose (low-rank)")
-    f.add_argument("scene", help=".blend, .obj or bundled scene name")
+    f.add_argument("scene", help=SCENE_HELP)
     f.add_argument("--poses", required=True,
                    help="JSON list of poses: {position, direction, angle_deg, intensity, color}, or a list of "
                         "them lighting at once")
@@ -205,13 +208,13 @@ def main(argv=None) -> int:
     add_arguments(f)
     f.set_defaults(func=cmd_flashlight)
     e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V)")
-    e.add_argument("scene", help=".blend, .obj or bundled scene name")
+    e.add_argument("scene", help=SCENE_HELP)
     e.add_argument("--out", required=True, help="file.npz, file.mat, or a prefix for the seed's .dat files")
     e.add_argument("--level", type=int, help="also the low-rank U and V of this hierarchy level")
     add_arguments(e)
     e.set_defaults(func=cmd_export)
     q = sub.add_parser("sequence", help="solve and render emission files <prefix><i><suffix>, i = from..to")
-    q.add_argument("scene", help=".blend, .obj or bundled scene name")
+    q.add_argument("scene", help=SCENE_HELP)
     q.add_argument("--prefix", required=True)
     q.add_argument("--suffix", default="", help="e.g. .dat")
     q.add_argument("--from", dest="first", type=int, default=1)
@@ -220,7 +223,7 @@ def main(argv=None) -> int:
     add_arguments(q)
     q.set_defaults(func=cmd_sequence)
     w = sub.add_parser("watch", help="solve and render an emission file each time another program rewrites it")
-    w.add_argument("scene", help=".blend, .obj or bundled scene name")
+    w.add_argument("scene", help=SCENE_HELP)
     w.add_argument("--file", required=True)
     w.add_argument("--out-dir", default="out/watch")
     w.add_argument("--polls", type=int, default=1_000_000, help="how many times to look (Ctrl+C stops)")

@@ -28,14 +28,36 @@ def load_bundled(name: str):
     return module
 
 
+#: Blender's own importer for each file type: (operator, add-on that provides it, or None).
+IMPORTERS = {
+    ".ply": ("wm.ply_import", None), ".stl": ("wm.stl_import", None),
+    ".gltf": ("import_scene.gltf", "io_scene_gltf2"), ".glb": ("import_scene.gltf", "io_scene_gltf2"),
+    ".fbx": ("import_scene.fbx", "io_scene_fbx"),
+    ".usd": ("wm.usd_import", None), ".usda": ("wm.usd_import", None), ".usdc": ("wm.usd_import", None),
+    ".usdz": ("wm.usd_import", None), ".abc": ("wm.alembic_import", None),
+}
+#: File types whose materials carry no emission: light them with Light objects or the World.
+NO_EMISSION = (".ply", ".stl", ".abc")
+
+
+def readable_types() -> str:
+    return ", ".join((".blend", ".obj", *IMPORTERS))
+
+
 def open_scene(source: str) -> list[str]:
-    """Make ``source`` the current Blender file; returns warnings from loading it."""
+    """Make ``source`` the current Blender file; returns warnings from loading it.
+
+    ``source`` is a .blend file, a scene file of a type Blender imports (``IMPORTERS``; .obj
+    with RadTR's own checks), or the name of a bundled scene."""
     import bpy
 
     path = Path(source)
-    if path.suffix.lower() == ".blend":
-        if not path.is_file():
-            raise InputFileError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix and suffix not in (".blend", ".obj", *IMPORTERS) and not (SCENES_DIR / f"{source}.py").is_file():
+        raise InputFileError(f"{path}: unknown scene file type '{suffix}' (Blender reads {readable_types()})")
+    if suffix and not path.is_file():
+        raise InputFileError(f"{path}: no such file")
+    if suffix == ".blend":
         try:
             bpy.ops.wm.open_mainfile(filepath=str(path))
         except RuntimeError as exc:
@@ -43,9 +65,34 @@ def open_scene(source: str) -> list[str]:
             raise InputFileError(f"{path}: not a .blend file Blender can read ({reason})") from None
         return []
     bpy.ops.wm.read_homefile(use_empty=True)
-    if path.suffix.lower() == ".obj":
+    if suffix == ".obj":
         from .objfile import load_obj
 
         return load_obj(path)
+    if suffix in IMPORTERS:
+        return import_file(path)
     load_bundled(source).build(bpy)
+    return []
+
+
+def import_file(path: Path) -> list[str]:
+    """Import ``path`` into the current scene with Blender's importer for its type."""
+    import addon_utils
+    import bpy
+
+    operator, addon = IMPORTERS[path.suffix.lower()]
+    if addon and not addon_utils.check(addon)[1]:
+        addon_utils.enable(addon, default_set=False)
+    group, name = operator.split(".")
+    before = set(bpy.data.objects)
+    try:
+        getattr(getattr(bpy.ops, group), name)(filepath=str(path))
+    except RuntimeError as exc:
+        reason = str(exc).strip().removeprefix("Error: ")
+        raise InputFileError(f"{path}: Blender's {path.suffix.lower()} importer could not read it ({reason})") from None
+    new = [o for o in bpy.data.objects if o not in before and o.type == "MESH" and len(o.data.polygons)]
+    if not new:
+        raise InputFileError(f"{path}: no mesh with faces in the file")
+    if path.suffix.lower() in NO_EMISSION:
+        return [f"{path.name}: {path.suffix.lower()} files carry no emission; add a Light or a World to light it"]
     return []
