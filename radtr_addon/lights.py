@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .formfactors.closed_form import point_to_triangles
+from .sampling import cone_directions, cosine_directions, grid_side, sphere_points, strata, stratified, triangle_points
+from .tolerances import CULL
 
 KINDS = ("POINT", "SPOT", "AREA", "SUN")
 SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
@@ -58,8 +60,7 @@ class Light:
     def polygon_light(cls, name: str, polygon: np.ndarray, exitance: np.ndarray) -> "Light":
         """An area light of ``polygon`` (counter-clockwise seen from the side it lights) with
         exitance E (W/m^2): an emitting patch, or the back of one."""
-        fan = _fan(polygon)
-        area = 0.5 * np.linalg.norm(np.cross(fan[:, 1] - fan[:, 0], fan[:, 2] - fan[:, 0]), axis=1).sum()
+        area = _areas(_fan(polygon)).sum()
         peak = float(exitance.max())
         return cls(name, "AREA", exitance / peak, peak * area, outline=np.array(polygon, float))
 
@@ -95,8 +96,7 @@ class Light:
 
     def area(self) -> float:
         if self.outline is not None:
-            fan = _fan(self.outline)
-            return float(0.5 * np.linalg.norm(np.cross(fan[:, 1] - fan[:, 0], fan[:, 2] - fan[:, 0]), axis=1).sum())
+            return float(_areas(_fan(self.outline)).sum())
         sy = self.size_y if self.shape in ("RECTANGLE", "ELLIPSE") else self.size_x
         world = np.linalg.norm(self.matrix[:3, 0]) * np.linalg.norm(self.matrix[:3, 1])
         factor = np.pi / 4 if self.shape in ("DISK", "ELLIPSE") else 1.0
@@ -107,28 +107,21 @@ def _fan(poly: np.ndarray) -> np.ndarray:
     return np.stack([np.broadcast_to(poly[0], (len(poly) - 2, 3)), poly[1:-1], poly[2:]], axis=1)
 
 
-def _stratified(count: int):
-    m = max(1, int(round(np.sqrt(count))))
-    cells = np.arange(m * m)
-    return (cells // m + 0.5) / m, (cells % m + 0.5) / m
+def _areas(tris: np.ndarray) -> np.ndarray:
+    """Areas (k,) of triangles (k, 3, 3)."""
+    return 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
 
 
 def _sample_points(light: Light, count: int) -> np.ndarray:
     """Deterministic points on the light's emitting surface (its centre when it has none)."""
-    u, v = _stratified(count)
+    u, v = stratified(grid_side(count))
     if light.kind == "AREA":
         tris = _fan(light.polygon())
-        areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-        pick = np.minimum(np.searchsorted(np.cumsum(areas) / areas.sum(), (np.arange(len(u)) + 0.5) / len(u)),
-                          len(tris) - 1)
-        s = np.sqrt(u)[:, None]
-        a, b, c = tris[pick, 0], tris[pick, 1], tris[pick, 2]
-        return (1 - s) * a + s * (1 - v[:, None]) * b + s * v[:, None] * c
+        areas = _areas(tris)
+        pick = np.minimum(np.searchsorted(np.cumsum(areas) / areas.sum(), strata(len(u))), len(tris) - 1)
+        return triangle_points(tris[pick], u, v)
     if light.radius > 0 and light.kind in ("POINT", "SPOT"):
-        z = 1 - 2 * u
-        r = np.sqrt(np.maximum(1 - z * z, 0))
-        phi = 2 * np.pi * v
-        return light.position + light.radius * np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+        return sphere_points(light.position, light.radius, u, v)
     return light.position[None]
 
 
@@ -159,15 +152,8 @@ def visibility(light: Light, points: np.ndarray, normals: np.ndarray, caster, sa
     """Fraction (k,) of shadow rays from each point that reach the light, among the rays above
     the point's horizon (the part of a light below it is already clipped from its form factor)."""
     if light.kind == "SUN":
-        u, v = _stratified(samples if light.radius > 0 else 1)
-        half = light.radius / 2
-        theta, phi = half * np.sqrt(u), 2 * np.pi * v
-        w = -light.axis
-        t = np.cross(w, [1.0, 0, 0] if abs(w[0]) < 0.9 else [0, 1.0, 0])
-        t /= np.linalg.norm(t)
-        b = np.cross(w, t)
-        dirs = (np.cos(theta)[:, None] * w + np.sin(theta)[:, None] * (np.cos(phi)[:, None] * t
-                                                                      + np.sin(phi)[:, None] * b))
+        u, v = stratified(grid_side(samples if light.radius > 0 else 1))
+        dirs = cone_directions(-light.axis, light.radius / 2, u, v)
         origins = np.repeat(points, len(dirs), axis=0)
         d = np.tile(dirs, (len(points), 1))
         clear = caster.reaches(origins + caster.epsilon * d, d)
@@ -193,7 +179,7 @@ PATCH_POINTS = np.array([[4, 1, 1], [1, 4, 1], [1, 1, 4], [2, 2, 2]]) / 6.0
 
 
 def irradiance_at(points: np.ndarray, normals: np.ndarray, lights: list[Light], caster, *, samples: int = 16,
-                  cull: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+                  cull: float = CULL) -> tuple[np.ndarray, np.ndarray]:
     """(H (k, 3), culled (k, 3)): the light of ``lights`` at points (already lifted off their
     surface) facing unit ``normals``, and the unoccluded irradiance of the lights culled there."""
     H = np.zeros((len(points), 3))
@@ -214,7 +200,7 @@ def irradiance_at(points: np.ndarray, normals: np.ndarray, lights: list[Light], 
     return H, culled
 
 
-def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: float = 1e-3, caster=None):
+def direct_irradiance(scene, lights: list[Light], *, samples: int = 16, cull: float = CULL, caster=None):
     """(H (n, 3), culled power (3,) W): the light of ``lights`` on the patches of ``scene``,
     the mean over ``PATCH_POINTS`` of each patch."""
     from .formfactors.raycast import EmbreeRays
@@ -246,15 +232,15 @@ def equirect_lookup(image: np.ndarray):
 def sky_irradiance(scene, radiance, rays: int = 64, seed: int = 0, caster=None) -> np.ndarray:
     """Irradiance (n, 3) at the patches from a distant sky of ``radiance(dirs) -> (k, 3)``
     (W/m^2/sr): pi x the mean radiance over cosine-weighted rays that leave the scene."""
-    from .formfactors.raycast import EmbreeRays, cosine_directions
+    from .formfactors.raycast import RAYS_PER_CALL, EmbreeRays
 
     caster = caster or EmbreeRays(scene, rays, seed)
     m2 = caster.rays
     H = np.zeros((scene.n, 3))
-    per_call = max(1, (1 << 20) // m2)
+    per_call = max(1, RAYS_PER_CALL // m2)
     for start in range(0, scene.n, per_call):
         ids = np.arange(start, min(start + per_call, scene.n))
-        u, v = _stratified(m2)
+        u, v = stratified(caster.side)
         rng = np.random.default_rng((seed, 2, start))
         u = (u[None] + (rng.random((len(ids), m2)) - 0.5) / caster.side) % 1.0
         v = (v[None] + (rng.random((len(ids), m2)) - 0.5) / caster.side) % 1.0

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import SettingsError
+from .sampling import bounding_sphere, hit_histogram, parallel_rays
 
 
 @dataclass
@@ -65,27 +66,21 @@ def dome(alpha: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
 
 def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256) -> SkyFactors:
     """Sky form factors of ``scene`` (Embree parallel rays from each dome point)."""
-    from .formfactors.hemicube import tangent_frames
     from .formfactors.raycast import EmbreeRays
 
     directions, omega = dome(alpha, beta)
     caster = EmbreeRays(scene, 1)
-    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
-    centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * 1.01 + 1e-9
-    g = (np.arange(resolution) + 0.5) / resolution * 2 - 1
-    gx, gy = np.meshgrid(g * radius, g * radius)
+    centre, radius = bounding_sphere(scene.vertices)
     pixel_area = (2 * radius / resolution) ** 2
     rows, cols, vals = [], [], []
-    t, b = tangent_frames(directions)
     for p, d in enumerate(directions):
-        origins = centre + 2 * radius * d + gx.reshape(-1, 1) * t[p] + gy.reshape(-1, 1) * b[p]
-        ray = np.broadcast_to(-d, origins.shape)
-        hit = caster.hit(origins, ray)
+        hit = caster.hit(*parallel_rays(centre, radius, d, resolution))
         front = (hit >= 0) & (scene.normals[np.maximum(hit, 0)] @ d > 0)
-        ids, counts = np.unique(hit[front], return_counts=True)
+        counts = hit_histogram(hit[front], 1, scene.n)[0]
+        ids = np.flatnonzero(counts)
         rows += [p] * len(ids)
         cols += ids.tolist()
-        vals += (counts * pixel_area / scene.areas[ids]).tolist()
+        vals += (counts[ids] * pixel_area / scene.areas[ids]).tolist()
     S = sp.csr_matrix((vals, (rows, cols)), shape=(len(directions), scene.n))
     return SkyFactors(directions, centre + 2 * radius * directions, omega, S)
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .sampling import stratified, triangle_points
+
 SAMPLES_PER_TEXEL = 64
 MIN_SAMPLES, MAX_SAMPLES = 16, 4096
 
@@ -71,11 +73,7 @@ def texel_mean(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     sides = np.ceil(np.sqrt(counts)).astype(int)
     for m in np.unique(sides):
         sel = np.flatnonzero(sides == m)
-        cells = np.arange(m * m)
-        r1, r2 = (cells // m + 0.5) / m, (cells % m + 0.5) / m
-        s = np.sqrt(r1)[None, :, None]
-        a, b, c = (uv[sel, k][:, None] for k in range(3))
-        p = (1 - s) * a + s * (1 - r2[None, :, None]) * b + s * r2[None, :, None] * c     # (k, m^2, 2)
+        p = triangle_points(uv[sel][:, None], *stratified(m))                              # (k, m^2, 2)
         col = np.floor((p[..., 0] % 1.0) * w).astype(np.int64) % w
         row = np.floor((p[..., 1] % 1.0) * h).astype(np.int64) % h
         out[sel] = image[row, col].mean(axis=1)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .formfactors.hemicube import tangent_frames
+from .sampling import bounding_box, bounding_sphere, parallel_rays, pixel_centres, tangent_frames
 
 VIEWS = ("paraboloid", "hemicube", "sky")
 
@@ -22,7 +22,7 @@ VIEWS = ("paraboloid", "hemicube", "sky")
 def _directions(kind: str, res: int):
     """Per-pixel local directions (h, w, 3) (x: tangent, y: bitangent, z: normal), NaN off the view."""
     if kind == "paraboloid":
-        g = (np.arange(res) + 0.5) / res * 2 - 1
+        g = pixel_centres(res)
         x, y = np.meshgrid(g, g[::-1])
         r2 = x * x + y * y
         d = np.stack([x, y, np.sqrt(np.maximum(1 - r2, 0))], axis=-1)
@@ -31,7 +31,7 @@ def _directions(kind: str, res: int):
     if kind != "hemicube":
         raise ValueError(f"view must be one of {', '.join(VIEWS)}, got '{kind}'")
     n = 2 * res
-    g = (np.arange(n) + 0.5) / res - 1.0                       # -1 .. 1 across the cross, top face in |.| < 0.5
+    g = pixel_centres(n)                                       # -1 .. 1 across the cross, top face in |.| < 0.5
     x, y = np.meshgrid(g * 2, (g * 2)[::-1])                   # top face: -1..1
     d = np.full((n, n, 3), np.nan)
     top = (np.abs(x) <= 1) & (np.abs(y) <= 1)
@@ -56,13 +56,7 @@ def sky_view(scene, direction, res: int = 128, caster=None) -> np.ndarray:
 
     caster = caster or EmbreeRays(scene, 1)
     d = np.asarray(direction, float) / np.linalg.norm(direction)
-    lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
-    centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo)) * 1.01 + 1e-9
-    t, b = tangent_frames(d[None])
-    g = (np.arange(res) + 0.5) / res * 2 - 1
-    gx, gy = np.meshgrid(g * radius, g[::-1] * radius)
-    origins = centre + 2 * radius * d + gx.reshape(-1, 1) * t[0] + gy.reshape(-1, 1) * b[0]
-    hit = caster.hit(origins, np.broadcast_to(-d, origins.shape))
+    hit = caster.hit(*parallel_rays(*bounding_sphere(scene.vertices), d, res, top_down=True))
     back = (hit >= 0) & (scene.normals[np.maximum(hit, 0)] @ d < 0)
     return np.where(back, -2, hit).reshape(res, res)
 
@@ -113,8 +107,7 @@ def view_from_patch(scene, i: int, lift: float = 1e-3) -> tuple[np.ndarray, np.n
     m = np.stack([x, y, z], axis=1)                            # columns: the view's axes in world space
     qx, qy, qz, qw = Rotation.from_matrix(m).as_quat()
     q = np.array([qw, qx, qy, qz])
-    diag = float(np.linalg.norm(scene.vertices.max(axis=0) - scene.vertices.min(axis=0)))
-    return scene.centroids[i] + lift * diag * n, q / np.linalg.norm(q)
+    return scene.centroids[i] + lift * bounding_box(scene.vertices)[1] * n, q / np.linalg.norm(q)
 
 
 def pick_patch(scene, origin, direction, caster=None) -> int:

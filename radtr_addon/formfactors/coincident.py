@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sampling import bounding_box
+
 #: Distances below this fraction of the scene's diagonal count as the same place.
 TOLERANCE = 1e-6
 #: Centroid-in-triangle tests allowed per pair of opposite planes before that pair is skipped.
@@ -24,8 +26,7 @@ def back_to_back_pairs(vertices: np.ndarray, triangles: np.ndarray, normals: np.
     if not len(ok):
         return np.zeros((0, 2), np.int64)
     corners, normals = vertices[triangles[ok]], normals[ok]     # (m, 3, 3), (m, 3)
-    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-    step = TOLERANCE * (float(np.linalg.norm(hi - lo)) or 1.0)
+    step = TOLERANCE * (bounding_box(vertices)[1] or 1.0)
     pairs = [_same_corners(corners, normals, step), _coplanar_overlap(corners, normals, step)]
     out = np.unique(np.sort(ok[np.concatenate(pairs)], axis=1), axis=0)
     return out.reshape(-1, 2)

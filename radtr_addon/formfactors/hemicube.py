@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sampling import pixel_centres, rotated_frames, strata, tangent_frames
 from .tiled import TiledRenderer, id_shader
 
 _VERTEX = "void main() { v_id = pid; gl_Position = viewProj * vec4(pos, 1.0); }"
@@ -25,8 +26,8 @@ def tile_weights(res: int) -> np.ndarray:
     """Delta form factors of one hemicube tile, shape (res, 3 res), rows bottom-up, sum 1."""
     if res < 2 or res % 2:
         raise ValueError(f"hemicube resolution must be even and at least 2, got {res}")
-    c = -1.0 + (np.arange(res) + 0.5) * 2.0 / res           # pixel centres across a face
-    h = (np.arange(res // 2) + 0.5) * 2.0 / res              # heights on a half face
+    c = pixel_centres(res)                                   # across a face
+    h = strata(res // 2)                                     # heights on a half face
     da = (2.0 / res) ** 2
     top = da / (np.pi * (c[None, :] ** 2 + c[:, None] ** 2 + 1.0) ** 2)
     side = h[:, None] * da / (np.pi * (c[None, :] ** 2 + h[:, None] ** 2 + 1.0) ** 2)
@@ -50,21 +51,6 @@ def _look(eye, forward, up):
     view[0, :3], view[1, :3], view[2, :3] = right, up, -forward
     view[:3, 3] = -view[:3, :3] @ eye
     return view
-
-
-def tangent_frames(normals: np.ndarray):
-    """Unit tangents t and bitangents b with (t, b, n) right-handed, per normal."""
-    helper = np.where(np.abs(normals[:, [0]]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-    t = np.cross(helper, normals)
-    t /= np.linalg.norm(t, axis=1)[:, None]
-    return t, np.cross(normals, t)
-
-
-def rotated_frames(normals: np.ndarray, angles: np.ndarray):
-    """Tangent frames turned about each normal by ``angles`` (radians)."""
-    t, b = tangent_frames(normals)
-    c, s = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    return c * t + s * b, c * b - s * t
 
 
 class HemicubeRenderer(TiledRenderer):

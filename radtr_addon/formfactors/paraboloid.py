@@ -34,13 +34,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .hemicube import tangent_frames
+from ..sampling import pixel_centres, tangent_frames
+from .methods import DEFAULT_SPLIT_TOLERANCE, SPLIT_MODES
 from .tiled import TiledRenderer, frame_texture, id_shader
 
-SPLIT_MODES = ("none", "uniform", "adaptive")
 #: Grid sizes available to adaptive splitting.
 ADAPTIVE_LEVELS = (1, 2, 4, 8, 16, 32, 64)
-DEFAULT_SPLIT_TOLERANCE = 2e-3
 
 _VERTEX = """
 vec4 texel(sampler2D tex, int k) { return texelFetch(tex, ivec2(k % 4096, k / 4096), 0); }
@@ -71,7 +70,7 @@ def disk_weights(res: int) -> np.ndarray:
     """Equal weights on the pixels whose centres lie in the unit disk, shape (res, res), sum 1."""
     if res < 2:
         raise ValueError(f"paraboloid resolution must be at least 2, got {res}")
-    c = -1.0 + (np.arange(res) + 0.5) * 2.0 / res
+    c = pixel_centres(res)
     inside = (c[None, :] ** 2 + c[:, None] ** 2) < 1.0
     return inside / inside.sum()
 
@@ -108,7 +107,7 @@ class ParaboloidRenderer(TiledRenderer):
     """
 
     #: Depth is linear in distance over near..far (2.5 diagonals): 2^-15 is 7.6e-5 of the
-    #: diagonal, under the eye's lift (1e-4); depth interpolated over thin grid triangles
+    #: diagonal, under the eye's lift (1e-4, ``EYE_LIFT``); depth interpolated over thin grid triangles
     #: differs between a triangle and its reversed twin by up to about 2^-18.
     back_face_bias = 2.0 ** -15
 

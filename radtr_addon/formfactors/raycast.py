@@ -16,27 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sampling import bounding_box, cosine_directions, grid_side, hit_histogram, jittered, triangle_points
+from ..tolerances import RAY_OFFSET
 from .closed_form import point_to_polygon
-from .hemicube import tangent_frames
-from .rows import Row, rows_skipping_degenerate
+from .rows import Row, histogram_rows, rows_skipping_degenerate
 
 #: Rays cast in one Embree call.
 RAYS_PER_CALL = 1 << 20
 ORIGINS = ("area", "centroid")
-
-
-def triangle_points(tris: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Uniform points (..., 3) on triangles (..., 3, 3) from unit-square samples u, v (...)."""
-    s = np.sqrt(u)[..., None]
-    return (1 - s) * tris[..., 0, :] + s * (1 - v[..., None]) * tris[..., 1, :] + s * v[..., None] * tris[..., 2, :]
-
-
-def cosine_directions(u: np.ndarray, v: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """Cosine-weighted directions (k, m, 3) from unit-square samples u, v (k, m) about normals (k, 3)."""
-    radius, phi = np.sqrt(u), 2 * np.pi * v
-    t, b = tangent_frames(normals)
-    local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(np.maximum(1 - u, 0))], axis=-1)
-    return local[..., :1] * t[:, None] + local[..., 1:2] * b[:, None] + local[..., 2:] * normals[:, None]
 
 
 class EmbreeRays:
@@ -49,14 +36,14 @@ class EmbreeRays:
         if origins not in ORIGINS:
             raise ValueError(f"ray origins must be one of {', '.join(ORIGINS)}, got '{origins}'")
         self.scene, self.seed, self.origins = scene, seed, origins
-        self.side = max(1, int(round(np.sqrt(rays))))
+        self.side = grid_side(rays)
         self.rays = self.side ** 2
         self.tris = scene.vertices[scene.triangles]
-        lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
-        self.epsilon = 1e-6 * (float(np.linalg.norm(hi - lo)) or 1.0)
+        self._centre, diag = bounding_box(scene.vertices)
+        self.epsilon = RAY_OFFSET * (diag or 1.0)
         # Embree sees the scene centred and scaled to a unit diagonal: it misses everything
         # beyond about 1e12 units, and float32 keeps most digits near the origin
-        self._centre, self._unit = 0.5 * (lo + hi), 1e6 * self.epsilon
+        self._unit = 1e6 * self.epsilon
         self._embree = rtcore_scene.EmbreeScene()
         TriangleMesh(self._embree, self._local(self.tris))
         self.cast = 0
@@ -79,9 +66,7 @@ class EmbreeRays:
         """Stratified direction samples (u, v) and origin samples, seeded by ``key``."""
         m = self.side
         rng = np.random.default_rng((self.seed, *np.atleast_1d(key).tolist()))
-        cells = np.arange(m * m)
-        u = (cells // m + rng.random(m * m)) / m
-        v = (cells % m + rng.random(m * m)) / m
+        u, v = jittered(m, rng)
         perm = rng.permutation(m * m)          # origins stratified independently of directions
         return u, v, u[perm], rng.random(m * m)
 
@@ -120,12 +105,7 @@ class EmbreeRays:
         # columns: 0 escaped, 1..n patches, n + 1 blocked
         col = np.where(hit < 0, 0, np.where(back, s.n + 1, hit + 1))
         keys = np.repeat(np.arange(k), m2) * (s.n + 2) + col
-        hist = np.bincount(keys, minlength=k * (s.n + 2)).reshape(k, s.n + 2) / m2
-        out = []
-        for row in hist:
-            idx = np.flatnonzero(row[1:s.n + 1])
-            out.append(Row(idx, row[1:s.n + 1][idx], float(row[0]), float(row[s.n + 1])))
-        return out
+        return histogram_rows(hit_histogram(keys, k, s.n + 2) / m2)
 
     def hit(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Patch id (k,) each ray from ``origins`` along ``dirs`` (k, 3) hits first, -1 for none."""
@@ -173,11 +153,8 @@ class EmbreeRays:
 
     def visible_fraction(self, point: np.ndarray, j: int, samples: int = 16) -> float:
         """Fraction of ``samples`` stratified points on patch j with a clear line from ``point``."""
-        m = max(1, int(round(np.sqrt(samples))))
-        cells = np.arange(m * m)
         rng = np.random.default_rng((self.seed, int(j), 1))
-        r1, r2 = (cells // m + rng.random(m * m)) / m, (cells % m + rng.random(m * m)) / m
-        targets = triangle_points(self.tris[j], r1, r2)
+        targets = triangle_points(self.tris[j], *jittered(grid_side(samples), rng))
         targets = targets[np.linalg.norm(targets - point, axis=1) > 0]
         if not len(targets):
             return 0.0

@@ -23,6 +23,16 @@ def escaped_row() -> Row:
     return Row(np.zeros(0, dtype=np.int64), np.zeros(0), 1.0, 0.0)
 
 
+def histogram_rows(hist: np.ndarray) -> list[Row]:
+    """Rows from a hit histogram (k, n + 2): column 0 escaped, 1..n the patches, n + 1 blocked."""
+    n = hist.shape[1] - 2
+    out = []
+    for row in hist:
+        idx = np.flatnonzero(row[1:n + 1])
+        out.append(Row(idx, row[1:n + 1][idx], float(row[0]), float(row[n + 1])))
+    return out
+
+
 def rows_skipping_degenerate(scene, ids, compute) -> list[Row]:
     """``compute(ids)`` for patches with a positive area; zero-area patches get ``escaped_row``."""
     ids = np.asarray(ids, dtype=np.int64)

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rows import Row, rows_skipping_degenerate
+from ..sampling import bounding_box, hit_histogram
+from ..tolerances import EYE_LIFT, NEAR_PLANE
+from .rows import Row, histogram_rows, rows_skipping_degenerate
 
 #: Pixels per batch framebuffer (bounds the readback and histogram size).
 BATCH_PIXELS = 1 << 21
@@ -38,12 +40,11 @@ class TiledRenderer:
         self.scene = scene
         self.weights = weights
         th, tw = weights.shape
-        lo, hi = scene.vertices.min(axis=0), scene.vertices.max(axis=0)
-        self.center = 0.5 * (lo + hi)
+        self.center, diag = bounding_box(scene.vertices)
+        self.diag = diag or 1.0
         self.centroids = scene.centroids
-        self.diag = float(np.linalg.norm(hi - lo)) or 1.0
-        self.near = 1e-4 * self.diag
-        self.offset = 1e-4 * self.diag
+        self.near = NEAR_PLANE * self.diag
+        self.offset = EYE_LIFT * self.diag
         self.far = 2.5 * self.diag
         self.renders = 0
         self._offscreen = None
@@ -146,15 +147,8 @@ class TiledRenderer:
         return self._layouts[key]
 
     def _histogram(self, image: np.ndarray, count: int, rows_: int, cols: int) -> list[Row]:
-        n = self.scene.n
         base, weights = self._layout(rows_, cols, count)
-        keys = base + image.astype(np.int64)
-        hist = np.bincount(keys, weights, minlength=count * (n + 2)).reshape(count, n + 2)
-        out = []
-        for row in hist:
-            idx = np.flatnonzero(row[1:n + 1])
-            out.append(Row(idx, row[1:n + 1][idx], float(row[0]), float(row[n + 1])))
-        return out
+        return histogram_rows(hit_histogram(base + image.astype(np.int64), count, self.scene.n + 2, weights))
 
 
 _ID_FRAGMENT = """

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..formfactors.raycast import triangle_points
+from ..sampling import strata, triangle_points
 from . import quadratic
 from .nodes import DIRECTIONS, Nodes, direction_weights
 
@@ -199,7 +199,7 @@ class Evaluator:
         if not len(li):
             return V
         m = VISIBILITY_RAYS
-        u = (np.arange(m) + self.rng.random((len(li), m))) / m              # stratified in u
+        u = strata(m, self.rng.random((len(li), m)))                         # stratified in u
         targets = triangle_points(tri_s[li][:, None], u, self.rng.random((len(li), m)))
         d = targets - x[li, pi][:, None]
         dist = np.linalg.norm(d, axis=-1)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sampling import bounding_box
 from ..scene import PatchScene
 
 
@@ -74,7 +75,7 @@ class Nodes:
 
     def __init__(self, scene: PatchScene, external=None):
         self.scene, self.external = scene, external
-        self.diagonal = float(np.linalg.norm(np.ptp(scene.vertices, axis=0))) or 1.0
+        self.diagonal = bounding_box(scene.vertices)[1] or 1.0
         self.vertices = [scene.vertices]
         self.n_vertices = len(scene.vertices)
         self.midpoint: dict[int, int] = {}
