@@ -2,6 +2,7 @@
 import bpy
 
 from .clear import RADTR_OT_clear
+from .export_gltf import RADTR_OT_export_gltf
 from .flashlight import RADTR_OT_flashlight
 from .load_vector import RADTR_OT_load_vector
 from .patch_view import RADTR_OT_patch_view
@@ -15,7 +16,7 @@ from .view_from_patch import RADTR_OT_view_from_patch
 
 CLASSES = (RADTR_OT_subdivide, RADTR_OT_solve, RADTR_OT_resume, RADTR_OT_flashlight, RADTR_OT_scenario_add,
            RADTR_OT_scenario_remove, RADTR_OT_patch_view, RADTR_OT_view_from_patch, RADTR_OT_load_vector,
-           RADTR_OT_toggle_emission, RADTR_OT_clear)
+           RADTR_OT_toggle_emission, RADTR_OT_export_gltf, RADTR_OT_clear)
 
 _register, _unregister = bpy.utils.register_classes_factory(CLASSES)
 

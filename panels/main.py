@@ -48,6 +48,7 @@ class RADTR_PT_main(_RadTRPanel, bpy.types.Panel):
         row = col.row(align=True)
         row.operator("radtr.solve", icon="LIGHT_SUN")
         row.operator("radtr.resume", icon="PLAY", text="Continue")
+        col.operator("radtr.export_gltf", icon="EXPORT")
         RADTR_PT_main.draw_readout(col)
 
     @staticmethod

@@ -33,7 +33,10 @@ def check_args(args):
     if level is not None and not 0 <= level <= args.levels:
         raise SettingsError(f"--level {level} is not a level of the hierarchy: 0..{args.levels} "
                             f"with --levels {args.levels}")
-    for flag in ("out", "render"):
+    gltf = getattr(args, "gltf", None)
+    if gltf and Path(gltf).suffix.lower() not in (".glb", ".gltf"):
+        raise SettingsError(f"--gltf {gltf}: a glTF file ends in .glb or .gltf")
+    for flag in ("out", "render", "gltf"):
         path = getattr(args, flag, None)
         if path and not Path(path).resolve().parent.is_dir():
             raise SettingsError(f"--{flag} {path}: the folder {Path(path).resolve().parent} does not exist")
@@ -57,8 +60,14 @@ def cmd_solve(args) -> int:
         bpy.ops.wm.save_as_mainfile(filepath=str(Path(args.out).resolve()))
         print(f"RadTR: wrote {args.out}")
     if args.render:
-        render_png(bpy.context.scene, str(Path(args.render).resolve()))
+        render_png(bpy.context.scene, str(Path(args.render).resolve()), camera=args.camera)
         print(f"RadTR: rendered {args.render}")
+    if args.gltf:
+        from .blender.gltf import export_gltf
+
+        for w in export_gltf(bpy.context.scene, job.objects, args.gltf, job.settings.exposure):
+            print(f"RadTR warning: {w}")
+        print(f"RadTR: wrote {args.gltf}")
     return 0
 
 
@@ -192,6 +201,10 @@ def main(argv=None) -> int:
     p.add_argument("scene", help=SCENE_HELP)
     p.add_argument("--out", help="write the solved scene to this .blend")
     p.add_argument("--render", help="render the solved scene to this PNG")
+    p.add_argument("--camera", default="", help="with --render: the camera object to render through "
+                                                "(default: the scene's, else a view from the front)")
+    p.add_argument("--gltf", help="write the result meshes to this .glb/.gltf (COLOR_0: the radiance shown; "
+                                  "_RADTR_RADIOSITY: B)")
     add_arguments(p)
     p.set_defaults(func=cmd_solve)
     f = sub.add_parser("flashlight", help="solve, then render one PNG per flashlight pose (low-rank)")

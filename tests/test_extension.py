@@ -1,5 +1,6 @@
-"""The built extension zip installs into Blender (PyPI bpy), enables, registers its operators
-and imports its bundled wheels."""
+"""The built extension zip (wheels for CPython 3.11 and 3.13) installs into Blender (PyPI bpy),
+enables, registers its operators, imports its bundled wheels, solves the Cornell box through
+its operators and keeps the flashlight's low-rank cache in its own user folder."""
 import os
 import subprocess
 import sys
@@ -21,6 +22,16 @@ INSTALL = textwrap.dedent("""
     flashlight = importlib.import_module(enabled[0] + ".radtr_addon.blender.flashlight")
     print("RADTR-INSTALLED", enabled[0])
     print("RADTR-CACHE", flashlight.cache_folder())
+    # solve the bundled Cornell box through the operators, then precompute the flashlight
+    bpy.ops.wm.read_homefile(use_empty=True)
+    importlib.import_module(enabled[0] + ".radtr_addon.blender.scenes").load_bundled("cornell_box").build(bpy)
+    s = bpy.context.scene.radtr
+    s.max_area, s.levels, s.method, s.rays = 0.01, 2, "embree", 64
+    assert bpy.ops.radtr.solve() == {"FINISHED"}
+    job = importlib.import_module(enabled[0] + ".operators.session").running["last"]
+    light, meshes, warnings, hit = flashlight.flashlight_for(job, 1)
+    print("RADTR-SOLVED", job.leaves.n, len(job.objects), float(job.B.max()), hit)
+    print("RADTR-FILES", *sorted(p.name for p in flashlight.cache_folder().iterdir()))
 """)
 
 
@@ -47,3 +58,15 @@ def test_zip_installs_and_registers(extension_zip, tmp_path):
     assert site, "the extension's wheels were not installed"
     for package in ("scipy", "embreex", "pyopencl"):
         assert (site[0] / package).is_dir(), package
+    n, objects, peak, hit = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-SOLVED")).split()[1:]
+    assert int(n) > 100 and int(objects) == 8 and float(peak) > 0 and hit == "False"
+    files = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-FILES")).split()[1:]
+    assert any(f.endswith(".npz") for f in files), files
+
+
+def test_zip_carries_wheels_for_both_pythons(extension_zip):
+    import zipfile
+
+    names = zipfile.ZipFile(extension_zip).namelist()
+    for tag in ("cp311", "cp313"):
+        assert sum(f"-{tag}-" in n for n in names) == 4, (tag, [n for n in names if n.endswith(".whl")])

@@ -16,15 +16,18 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PLATFORM = "manylinux_2_28_x86_64"
+#: Blender 4.2-5.0 run Python 3.11, Blender 5.1+ 3.13: a wheel of each; Blender installs its own.
+PYTHONS = ("3.11", "3.13")
 
 
 def fetch_wheels(dest: Path):
     reqs = [line.strip() for line in (ROOT / "tools" / "wheels.txt").read_text().splitlines()
             if line.strip() and not line.startswith("#")]
     dest.mkdir(exist_ok=True)
-    subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--only-binary=:all:", "--no-deps",
-                    "--platform", PLATFORM, "--python-version", "3.11", "-d", str(dest), *reqs],
-                   check=True)
+    for version in PYTHONS:
+        subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--only-binary=:all:", "--no-deps",
+                        "--platform", PLATFORM, "--python-version", version, "-d", str(dest), *reqs],
+                       check=True)
 
 
 def check_manifest(wheel_dir: Path):

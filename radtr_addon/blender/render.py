@@ -1,7 +1,8 @@
 """Render a picture of a solved scene to PNG, for people to look at.
 
-Cycles draws the result meshes' display material (emission = exposure x B / pi) with no
-bounces, so the picture shows the solved radiosity and nothing Cycles computed itself.
+Cycles draws the result meshes' display material (emission = exposure x B / pi; back faces
+see-through) with no bounces, so the picture shows the solved radiosity and nothing Cycles
+computed itself; a closed room without a camera is seen from outside as a dollhouse.
 The scene's render settings are restored afterwards.
 """
 from __future__ import annotations
@@ -23,11 +24,22 @@ def _owner(scene, path):
     return obj
 
 
-def render_png(bl_scene, path: str, samples: int = 16):
-    """Render ``bl_scene`` through its camera (one framing the scene if it has none) to ``path``."""
+def render_png(bl_scene, path: str, samples: int = 16, camera: str = ""):
+    """Render ``bl_scene`` to ``path`` through the camera object named ``camera``, else the
+    scene's camera, else one framing the scene from the front (the walls it sees from behind
+    are see-through: ``write.display_material``)."""
     import bpy
 
+    from ..errors import SceneError
+
     saved = [(p, a, getattr(_owner(bl_scene, p), a)) for p, a in _SETTINGS]
+    scene_camera = bl_scene.camera
+    if camera:
+        obj = bl_scene.objects.get(camera)
+        if obj is None or obj.type != "CAMERA":
+            have = ", ".join(o.name for o in bl_scene.objects if o.type == "CAMERA") or "none"
+            raise SceneError(f"no camera '{camera}' in scene '{bl_scene.name}' (cameras: {have})")
+        bl_scene.camera = obj
     temp_cam = None if bl_scene.camera else _frame_camera(bl_scene)
     try:
         r = bl_scene.render
@@ -49,7 +61,7 @@ def render_png(bl_scene, path: str, samples: int = 16):
             data = temp_cam.data
             bpy.data.objects.remove(temp_cam)
             bpy.data.cameras.remove(data)
-            bl_scene.camera = None
+        bl_scene.camera = scene_camera
 
 
 def _frame_camera(bl_scene):

@@ -59,7 +59,9 @@ def build_mesh(name: str, vertices: np.ndarray, part: MeshPart, B: np.ndarray, p
 
 
 def display_material(exposure: float = 1.0):
-    """The material that shows ``radtr_radiosity`` as radiance B / pi times ``exposure``."""
+    """The material that shows ``radtr_radiosity`` as radiance B / pi times ``exposure`` on the
+    side that was solved; a back face is see-through, so a closed room seen from outside shows
+    its lit inside (a dollhouse view) and a wall seen from behind does not hide the room."""
     import bpy
 
     mat = bpy.data.materials.get(DISPLAY_MATERIAL)
@@ -74,10 +76,17 @@ def display_material(exposure: float = 1.0):
         attr.attribute_name = "radtr_radiosity"
         emit = nodes.new("ShaderNodeEmission")
         emit.name = EMISSION_NODE
+        back, clear, mix = (nodes.new(kind) for kind in
+                            ("ShaderNodeNewGeometry", "ShaderNodeBsdfTransparent", "ShaderNodeMixShader"))
         out = nodes.new("ShaderNodeOutputMaterial")
-        attr.location, emit.location, out.location = (-400, 0), (-150, 0), (100, 0)
+        for node, xy in ((attr, (-400, 0)), (emit, (-150, 0)), (back, (-150, 250)), (clear, (-150, -150)),
+                         (mix, (100, 0)), (out, (300, 0))):
+            node.location = xy
         links.new(attr.outputs["Color"], emit.inputs["Color"])
-        links.new(emit.outputs["Emission"], out.inputs["Surface"])
+        links.new(back.outputs["Backfacing"], mix.inputs["Fac"])
+        links.new(emit.outputs["Emission"], mix.inputs[1])
+        links.new(clear.outputs["BSDF"], mix.inputs[2])
+        links.new(mix.outputs["Shader"], out.inputs["Surface"])
     set_exposure(exposure)
     return mat
 
