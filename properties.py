@@ -128,7 +128,10 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         description="Uniform sky radiance, or the CIE sky's zenith radiance (W/m^2/sr)")
     sky_step: FloatProperty(
         name="Dome Step", default=_D.sky_step, min=0.5, max=90.0,
-        description="Degrees between dome points in azimuth and altitude: smaller is more exact and slower")
+        description="Degrees between dome points in azimuth (the seed's alpha): smaller is more exact and slower")
+    sky_altitude_step: FloatProperty(
+        name="Altitude Step", default=_D.sky_altitude_step, min=0.0, max=90.0,
+        description="Degrees between the dome's altitude bands (the seed's beta); 0: the same as the Dome Step")
     sky_resolution: IntProperty(
         name="Sky Rays Across", default=_D.sky_resolution, min=16, soft_max=2048,
         description="Parallel rays across the scene per dome point: more finds smaller patches in the sun")

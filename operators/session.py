@@ -78,3 +78,65 @@ class ModalSolve:
         wm.event_timer_remove(self._timer)
         wm.progress_end()
         context.workspace.status_text_set(None)
+
+
+class ModalTask:
+    """Runs a task's steps (``radtr_addon.tasks``) from a timer: progress bar, status text, ESC
+    closes the steps (their ``finally`` undoes what is half done). In background mode, or
+    called from a script, it runs them to the end at once. Subclasses report in ``finished``."""
+
+    what = "task"
+
+    def _run_steps(self, context, steps):
+        import bpy
+
+        from ..radtr_addon.tasks import run
+
+        if bpy.app.background or context.window is None:
+            try:
+                result = run(steps)
+            except Exception as exc:
+                self.report({"ERROR"}, user_message(exc))
+                return {"CANCELLED"}
+            return self.finished(context, result)
+        self._steps = steps
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.02, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        import time
+
+        if event.type == "ESC":
+            self._steps.close()
+            self._end(context)
+            self.report({"WARNING"}, f"RadTR: {self.what} cancelled")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            end = time.perf_counter() + 0.1
+            while time.perf_counter() < end:
+                fraction = next(self._steps)
+        except StopIteration as done:
+            self._end(context)
+            return self.finished(context, done.value)
+        except Exception as exc:
+            self._steps.close()
+            self._end(context)
+            self.report({"ERROR"}, user_message(exc))
+            return {"CANCELLED"}
+        context.window_manager.progress_update(int(100 * fraction))
+        context.workspace.status_text_set(f"RadTR: {self.what} {fraction:.0%}; ESC cancels")
+        return {"RUNNING_MODAL"}
+
+    def _end(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+
+    def finished(self, context, result):
+        return {"FINISHED"}

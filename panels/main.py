@@ -41,6 +41,7 @@ class RADTR_PT_main(_RadTRPanel, bpy.types.Panel):
         if s.sky != "none":
             col.prop(s, "sky_radiance")
             col.prop(s, "sky_step")
+            col.prop(s, "sky_altitude_step")
             col.prop(s, "sky_resolution")
         col.prop(s, "max_reflectance")
         col.prop(s, "cache_mb")
@@ -134,6 +135,21 @@ class RADTR_PT_views(_SubPanel, bpy.types.Panel):
         row = col.row(align=True)
         row.operator("radtr.patch_view", icon="IMAGE_DATA")
         row.operator("radtr.view_from_patch", icon="VIEW_CAMERA")
-        col.operator("radtr.load_vector", icon="FILE_FOLDER")
-        col.operator("radtr.toggle_emission", icon="RESTRICT_SELECT_OFF")
         col.operator("radtr.clear", icon="TRASH")
+
+
+class RADTR_PT_research(_SubPanel, bpy.types.Panel):
+    """The research workbench on the last solve: matrices out, vectors in, sequences, the sky."""
+
+    bl_label = "Research"
+    bl_idname = "RADTR_PT_research"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        col = self.layout.column()
+        col.operator("radtr.export", icon="EXPORT")
+        col.operator("radtr.sky_factors", icon="WORLD")
+        col.operator("radtr.load_vector", icon="FILE_FOLDER")
+        col.operator("radtr.sequence", icon="RENDER_ANIMATION")
+        col.operator("radtr.watch", icon="HIDE_OFF")
+        col.operator("radtr.toggle_emission", icon="RESTRICT_SELECT_OFF")

@@ -40,6 +40,10 @@ def check_args(args):
         path = getattr(args, flag, None)
         if path and not Path(path).resolve().parent.is_dir():
             raise SettingsError(f"--{flag} {path}: the folder {Path(path).resolve().parent} does not exist")
+    if args.command == "export":
+        from .tasks import export_target
+
+        export_target(args.out)
     out_dir = getattr(args, "out_dir", None)
     if out_dir and Path(out_dir).exists() and not Path(out_dir).is_dir():
         raise SettingsError(f"--out-dir {out_dir} is a file, not a folder")
@@ -53,7 +57,7 @@ def cmd_solve(args) -> int:
 
     for w in open_scene(args.scene):
         print(f"RadTR warning: {w}")
-    job = solve(bpy.context, settings_from(args))
+    job = solve(bpy.context, settings_from(args), progress=_every(lambda job: print(f"RadTR: {job.readout}")))
     times = ", ".join(f"{k} {v:.2f} s" for k, v in job.stats.seconds.items())
     print(f"RadTR: stages: {times}")
     if args.out:
@@ -148,26 +152,30 @@ def cmd_export(args) -> int:
     import bpy
 
     from .blender.pipeline import SolveJob
-    from .exchange import arrays_of, export
-    from .solvers.matrix import Assembly
+    from .tasks import export_steps, run
 
     for w in open_scene(args.scene):
         print(f"RadTR warning: {w}")
     ctx = bpy.context
     job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings_from(args))
-    assembly = Assembly(job.rows, job.leaves.n)
-    F = None
-    while F is None:
-        F = assembly.step()
-    U = V = None
-    if args.level is not None:
-        from .lowrank import build
-
-        lowrank = build(job.hierarchy, job.rows, args.level)
-        U, V = lowrank.U, lowrank.V
-    for path in export(args.out, arrays_of(job.leaves, F, U, V)):
+    steps = export_steps(job, args.out, args.level, args.refine_to, job.sky)
+    for path in run(steps, progress=_every(lambda f: print(f"RadTR: export {f:.0%}"))):
         print(f"RadTR: wrote {path}")
     return 0
+
+
+def _every(show, seconds: float = 2.0):
+    """A ``progress(x)`` that calls ``show(x)`` at most every ``seconds`` (a line a while, not a flood)."""
+    import time
+
+    last = [time.perf_counter()]
+
+    def progress(x):
+        if time.perf_counter() - last[0] >= seconds:
+            last[0] = time.perf_counter()
+            show(x)
+            sys.stdout.flush()
+    return progress
 
 
 def cmd_sequence(args) -> int:
@@ -180,9 +188,9 @@ def cmd_sequence(args) -> int:
         print(f"RadTR warning: {w}")
     job = solve(bpy.context, settings_from(args))
     if args.command == "watch":
-        paths = watch(job, args.file, args.out_dir, args.polls, args.interval)
+        paths = watch(job, args.file, args.out_dir, args.polls, args.interval, out_prefix=args.out_prefix)
     else:
-        paths = render_sequence(job, args.prefix, args.first, args.last, args.out_dir, args.suffix)
+        paths = render_sequence(job, args.prefix, args.first, args.last, args.out_dir, args.suffix, args.out_prefix)
     for path in paths:
         print(f"RadTR: rendered {path}")
     return 0
@@ -220,10 +228,14 @@ def main(argv=None) -> int:
     f.add_argument("--user-frame", default="", help="with --backend user: module:function called every frame")
     add_arguments(f)
     f.set_defaults(func=cmd_flashlight)
-    e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V)")
+    e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V; "
+                                      "with --sky the sky matrix and its points)")
     e.add_argument("scene", help=SCENE_HELP)
     e.add_argument("--out", required=True, help="file.npz, file.mat, or a prefix for the seed's .dat files")
     e.add_argument("--level", type=int, help="also the low-rank U and V of this hierarchy level")
+    e.add_argument("--refine-to", type=int, default=0,
+                   help="with --level: refine the level's clusters where the light is until there are this many "
+                        "(the multi-level cut)")
     add_arguments(e)
     e.set_defaults(func=cmd_export)
     q = sub.add_parser("sequence", help="solve and render emission files <prefix><i><suffix>, i = from..to")
@@ -233,12 +245,14 @@ def main(argv=None) -> int:
     q.add_argument("--from", dest="first", type=int, default=1)
     q.add_argument("--to", dest="last", type=int, required=True)
     q.add_argument("--out-dir", default="out/sequence")
+    q.add_argument("--out-prefix", default="frame_", help="PNG names: <out-prefix><i>.png")
     add_arguments(q)
     q.set_defaults(func=cmd_sequence)
     w = sub.add_parser("watch", help="solve and render an emission file each time another program rewrites it")
     w.add_argument("scene", help=SCENE_HELP)
     w.add_argument("--file", required=True)
     w.add_argument("--out-dir", default="out/watch")
+    w.add_argument("--out-prefix", default="watch_", help="PNG names: <out-prefix>NNNN.png")
     w.add_argument("--polls", type=int, default=1_000_000, help="how many times to look (Ctrl+C stops)")
     w.add_argument("--interval", type=float, default=0.5, help="seconds between looks")
     add_arguments(w)

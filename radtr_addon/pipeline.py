@@ -64,6 +64,8 @@ class Solve:
         for w in scene_input.warnings:
             log(f"RadTR warning: {w}")
         self.stats.warnings += scene_input.warnings
+        self.sky = None                             # the research sky's SkyFactors, once computed
+        self._trace: list[tuple[float, float]] = []  # (solver seconds, residual) after each advance
         if settings.solver == "hierarchical":
             self._prepare_hierarchical()
         else:
@@ -211,7 +213,7 @@ class Solve:
         s = self.settings
         models = {"uniform": uniform_sky, "cie": cie_overcast}
         s.validate(self.leaves.n)
-        self.sky = sky_factors(self.leaves, s.sky_step, s.sky_step, s.sky_resolution)
+        self.sky = sky_factors(self.leaves, *s.sky_steps, s.sky_resolution)
         return self.sky.irradiance(models[s.sky](self.sky, s.sky_radiance))
 
     @contextmanager
@@ -234,17 +236,35 @@ class Solve:
 
     @property
     def readout(self) -> str:
-        """One line on where the solve stands, for the status bar and the N-panel."""
+        """One line on where the solve stands, for the status bar, the N-panel and the CLI."""
         s = self.solver
-        return f"{s.phase}: residual {s.residual:.2e} (stop at {s.tol:g}), {s.seconds:.1f} s"
+        eta = self.eta
+        left = f", about {eta:,.0f} s left" if eta is not None else ""
+        return f"{s.phase}: residual {s.residual:.2e} (stop at {s.tol:g}), {s.seconds:.1f} s{left}"
+
+    @property
+    def eta(self) -> float | None:
+        """Seconds until the residual reaches the tolerance, at the rate its log fell over the
+        latter half of the solve so far; None until it has fallen over three slices."""
+        trace = self._trace
+        if len(trace) < 3:
+            return None
+        (t0, r0), (t1, r1) = trace[len(trace) // 2 - 1], trace[-1]
+        tol = max(self.solver.tol, 1e-300)
+        if not (r0 > r1 > 0) or t1 <= t0:
+            return None
+        return max(float(np.log(r1 / tol) / (np.log(r0 / r1) / (t1 - t0))), 0.0)
 
     def advance(self, seconds: float = 0.1) -> bool:
         """Step the solver for about ``seconds``; True when the solve is finished."""
         end = time.perf_counter() + seconds
-        while time.perf_counter() < end:
-            if self.solver.step(8):
-                return True
-        return self.solver.done
+        try:
+            while time.perf_counter() < end:
+                if self.solver.step(8):
+                    return True
+            return self.solver.done
+        finally:
+            self._trace.append((self.solver.seconds, self.solver.residual))
 
     def resume(self, more_iterations: int):
         """Let a solve that stopped at its iteration cap go on for ``more_iterations``."""

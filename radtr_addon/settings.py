@@ -61,7 +61,9 @@ class Settings:
     gather_rays: int = option(0, "final gather of the vertex colours with this many rays per vertex (0: patch mean)")
     sky: str = option("none", "apply a research sky through sky form factors", SKIES)
     sky_radiance: float = option(1.0, "uniform radiance, or the CIE sky's zenith radiance (W/m^2/sr)")
-    sky_step: float = option(10.0, "dome points every this many degrees of azimuth and altitude")
+    sky_step: float = option(10.0, "dome points every this many degrees of azimuth (the seed's alpha)")
+    sky_altitude_step: float = option(0.0, "dome bands every this many degrees of altitude (the seed's beta); "
+                                           "0: the same as the azimuth step")
     sky_resolution: int = option(256, "parallel rays across the scene per dome point")
     max_reflectance: float = option(0.95, "reflectances above this are clamped, with a warning naming the material")
     exposure: float = option(1.0, "brightness of the displayed result (radiance shown = exposure x B / pi)")
@@ -96,6 +98,8 @@ class Settings:
                 ("gather rays", s.gather_rays, s.gather_rays >= 0, "0 (patch mean) or more"),
                 ("sky radiance", s.sky_radiance, 0 <= s.sky_radiance < np.inf, "0 or more"),
                 ("sky step", s.sky_step, 0 < s.sky_step <= 90, "above 0 and at most 90 degrees"),
+                ("sky altitude step", s.sky_altitude_step, 0 <= s.sky_altitude_step <= 90,
+                 "0 (the azimuth step) or at most 90 degrees"),
                 ("max reflectance", s.max_reflectance, 0 <= s.max_reflectance <= 1, "between 0 and 1"),
                 ("exposure", s.exposure, 0 <= s.exposure < np.inf, "0 or more"),
                 ("memory budget", s.cache_mb, s.cache_mb >= 1, "at least 1 MB")):
@@ -103,7 +107,8 @@ class Settings:
                 raise SettingsError(f"{label} must be {need}, got {value!r}")
         for what, need in self.memory(patches).items():
             if need > self.cache_mb << 20:
-                raise SettingsError(f"{what} needs {need / 2**30:,.1f} GiB, over the memory budget of "
+                size = f"{need / 2**30:,.1f} GiB" if need >= 2**30 else f"{need / 2**20:,.0f} MB"
+                raise SettingsError(f"{what} needs {size}, over the memory budget of "
                                     f"{self.cache_mb:,} MB (raise the budget: Memory Budget, --cache-mb)")
 
     def memory(self, patches: int = 0) -> dict[str, int]:
@@ -118,12 +123,18 @@ class Settings:
             out[f"a {self.method} view of {pixels:,} pixels (resolution {self.resolution})"] = pixels * BYTES_PER_PIXEL
         out[f"gathering {self.gather_rays:,} rays per vertex"] = self.gather_rays * BYTES_PER_RAY
         if self.sky != "none":
-            points = dome_size(self.sky_step, self.sky_step)
+            points = dome_size(*self.sky_steps)
             rows = min(self.sky_resolution ** 2, patches)
             seen = f" x {rows:,} patches" if patches else ""
-            out[f"a sky dome of {points:,} points (step {self.sky_step:g} degrees){seen}"] = (
+            out[f"a sky dome of {points:,} points (steps {self.sky_steps[0]:g} x {self.sky_steps[1]:g} "
+                f"degrees){seen}"] = (
                 points * (BYTES_PER_DOME_POINT + BYTES_PER_SKY_FACTOR * rows))
         return out
+
+    @property
+    def sky_steps(self) -> tuple[float, float]:
+        """(alpha, beta): the dome's azimuth and altitude steps in degrees."""
+        return self.sky_step, self.sky_altitude_step or self.sky_step
 
     def form_factors(self) -> FormFactorSettings:
         return FormFactorSettings(method=self.method, resolution=self.resolution, rotate=self.rotate,

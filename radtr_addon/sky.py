@@ -66,6 +66,14 @@ def dome(alpha: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
 
 def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256) -> SkyFactors:
     """Sky form factors of ``scene`` (Embree parallel rays from each dome point)."""
+    from .tasks import run
+
+    return run(sky_factor_steps(scene, alpha, beta, resolution))
+
+
+def sky_factor_steps(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256):
+    """``sky_factors`` as steps (``tasks``): yields the fraction done after each dome point,
+    returns the SkyFactors."""
     from .formfactors.raycast import EmbreeRays
 
     directions, omega = dome(alpha, beta)
@@ -81,8 +89,28 @@ def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int 
         rows += [p] * len(ids)
         cols += ids.tolist()
         vals += (counts[ids] * pixel_area / scene.areas[ids]).tolist()
+        yield (p + 1) / len(directions)
     S = sp.csr_matrix((vals, (rows, cols)), shape=(len(directions), scene.n))
     return SkyFactors(directions, centre + 2 * radius * directions, omega, S)
+
+
+def sky_image_steps(scene, sky: SkyFactors, out_dir, resolution: int = 128):
+    """One PNG a dome point, ``sky_NNNN.png`` in ``out_dir``: what the point sees, patches in
+    their id colour code (the seed saved these views); yields the fraction done, returns the paths."""
+    from pathlib import Path
+
+    import matplotlib.image
+
+    from .views import id_colors, sky_view
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for p, d in enumerate(sky.directions):
+        paths.append(out_dir / f"sky_{p:04d}.png")
+        matplotlib.image.imsave(paths[-1], id_colors(sky_view(scene, d, resolution)))
+        yield (p + 1) / len(sky.directions)
+    return paths
 
 
 def uniform_sky(sky: SkyFactors, radiance) -> np.ndarray:

@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from conftest import ROOT
 
 #: A 2 m room (inward faces; float32-exact coordinates, so Blender's meshes store them as they
@@ -15,6 +16,7 @@ import sys
 for name in ("bpy", "gpu", "mathutils", "bmesh"):
     sys.modules[name] = None
 import numpy as np
+import pytest
 from radtr_addon.lights import Light
 from radtr_addon.pipeline import SceneInput, solve
 from radtr_addon.scene import PatchScene
@@ -83,3 +85,20 @@ def test_engine_solve_without_blender_equals_the_blender_path(blend, tmp_path):
     job.run().finish()
     np.testing.assert_array_equal(job.leaves.centroids, engine["centroids"])
     np.testing.assert_allclose(job.B, engine["lit"], rtol=1e-9, atol=1e-12)
+
+
+def test_eta_extrapolates_the_residual_fall_to_the_tolerance():
+    """A residual falling as exp(-t/2) reaches the tolerance 1e-3 at t = 2 ln 1000: the ETA at
+    t = 4 is that minus 4; before three slices there is none; the readout says it."""
+    from geometry import cube
+
+    from radtr_addon.pipeline import SceneInput, Solve
+    from radtr_addon.settings import Settings
+
+    s = Solve(SceneInput(cube()), Settings(method="embree", rays=16, tolerance=1e-3), log=lambda *_: None)
+    assert s.eta is None
+    s._trace = [(t, np.exp(-t / 2)) for t in (1.0, 2.0, 3.0, 4.0)]
+    assert s.eta == pytest.approx(2 * np.log(1000) - 4, rel=1e-9)
+    assert f"about {2 * np.log(1000) - 4:,.0f} s left" in s.readout
+    s._trace = [(t, 0.5) for t in (1.0, 2.0, 3.0)]             # no fall: no estimate
+    assert s.eta is None

@@ -114,7 +114,7 @@ NAN = float("nan")
     (dict(method="paraboloid", resolution=16384), "a paraboloid view of 268,435,456 pixels .* needs 20.0 GiB"),
     (dict(method="embree", rays=400_000_000), "casting 400,000,000 rays per patch needs 59.6 GiB"),
     (dict(gather_rays=100_000_000), "gathering 100,000,000 rays per vertex needs 14.9 GiB"),
-    (dict(sky="uniform", sky_step=0.001), r"a sky dome of 32,400,000,000 points \(step 0.001 degrees\) needs"),
+    (dict(sky="uniform", sky_step=0.001), r"a sky dome of 32,400,000,000 points \(steps 0.001 x 0.001 degrees\) needs"),
     (dict(solver="hierarchical", quality=1e-9), "quality must be between 1e-4 and 1 .*, got 1e-09"),
     (dict(solver="hierarchical", quality=NAN), "quality must be between 1e-4 and 1"),
 ])
@@ -132,7 +132,7 @@ def test_the_memory_budget_can_be_raised():
 def test_sky_form_factors_over_the_budget_are_refused_with_the_patch_count(cornell):
     bpy = cornell
     before = state(bpy)
-    with pytest.raises(SettingsError, match=r"a sky dome of 8,100 points \(step 2 degrees\) x [\d,]+ patches needs"):
+    with pytest.raises(SettingsError, match=r"a sky dome of 8,100 points \(steps 2 x 2 degrees\) x [\d,]+ patches needs [\d,]+ MB"):
         solve(bpy.context, Settings(sky="uniform", sky_step=2.0, cache_mb=20, **FAST), log=quiet)
     assert state(bpy) == before
 

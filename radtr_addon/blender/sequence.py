@@ -29,17 +29,30 @@ def _show(job, meshes, E, png: Path) -> Path:
     return png
 
 
-def render_sequence(job, prefix: str, first: int, last: int, out_dir, suffix: str = "") -> list[Path]:
-    """One PNG per file ``<prefix><i><suffix>``, i = first..last; every file is checked first."""
+def render_sequence(job, prefix: str, first: int, last: int, out_dir, suffix: str = "",
+                    out_prefix: str = "frame_") -> list[Path]:
+    """One PNG per file ``<prefix><i><suffix>``, i = first..last (``sequence_steps`` run to the end)."""
+    from ..tasks import run
+
+    return run(sequence_steps(job, prefix, first, last, out_dir, suffix, out_prefix))
+
+
+def sequence_steps(job, prefix: str, first: int, last: int, out_dir, suffix: str = "", out_prefix: str = "frame_"):
+    """``render_sequence`` as steps (``tasks``): every file is checked first, then one PNG
+    ``<out_prefix><i>.png`` a step; the meshes' colours are restored when done or closed."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     vectors = [(i, load_vector(f"{prefix}{i}{suffix}", job.leaves.n)) for i in range(first, last + 1)]
     meshes = LiveMeshes(job.objects, job.leaves)
     saved = meshes.snapshot()
+    paths = []
     try:
-        return [_show(job, meshes, E, out_dir / f"frame_{i:04d}.png") for i, E in vectors]
+        for i, E in vectors:
+            paths.append(_show(job, meshes, E, out_dir / f"{out_prefix}{i:04d}.png"))
+            yield len(paths) / len(vectors)
     finally:
         meshes.restore(saved)
+    return paths
 
 
 def read_complete(path: Path, n: int) -> np.ndarray:
@@ -60,34 +73,53 @@ def read_complete(path: Path, n: int) -> np.ndarray:
     return E
 
 
-def watch(job, path, out_dir, polls: int, interval: float = 0.5, sleep=time.sleep, log=print) -> list[Path]:
-    """Poll ``path`` ``polls`` times; each complete new version gives ``watch_NNNN.png``."""
-    path, out_dir = Path(path), Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    meshes = LiveMeshes(job.objects, job.leaves)
-    saved = meshes.snapshot()
-    shown, seen, previous = [], None, None
+class Watcher:
+    """Polls an emission file; each complete new version is solved, shown and rendered to
+    ``<out_prefix>NNNN.png``. ``close`` restores the meshes' colours."""
+
+    def __init__(self, job, path, out_dir, out_prefix: str = "watch_", log=print):
+        self.job, self.path, self.out_dir, self.out_prefix, self.log = job, Path(path), Path(out_dir), out_prefix, log
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.meshes = LiveMeshes(job.objects, job.leaves)
+        self.saved = self.meshes.snapshot()
+        self.shown, self.seen, self.previous = [], None, None
+
+    def poll(self, interval: float) -> Path | None:
+        """Look once; the PNG rendered when a new version has stayed unchanged since the last look."""
+        try:
+            st = self.path.stat()
+            signature = (st.st_mtime_ns, st.st_size)
+        except FileNotFoundError:
+            signature = None
+        out = None
+        if signature is not None and signature != self.seen and signature == self.previous:
+            try:
+                E = read_complete(self.path, self.job.leaves.n)
+            except (InputFileError, OSError) as exc:
+                self.log(f"RadTR warning: {exc}; skipped, waiting for a complete file (tried again in {interval:g} s)")
+            else:
+                out = _show(self.job, self.meshes, E, self.out_dir / f"{self.out_prefix}{len(self.shown):04d}.png")
+                self.shown.append(out)
+                self.log(f"RadTR: {self.path.name} changed; rendered {out}")
+                self.seen = signature
+        self.previous = signature
+        return out
+
+    def close(self):
+        self.meshes.restore(self.saved)
+
+
+def watch(job, path, out_dir, polls: int, interval: float = 0.5, sleep=time.sleep, log=print,
+          out_prefix: str = "watch_") -> list[Path]:
+    """Poll ``path`` ``polls`` times, ``interval`` seconds apart (``Watcher``); returns the PNGs."""
+    watcher = Watcher(job, path, out_dir, out_prefix, log)
     try:
         for _ in range(polls):
-            try:
-                st = path.stat()
-                signature = (st.st_mtime_ns, st.st_size)
-            except FileNotFoundError:
-                signature = None
-            if signature is not None and signature != seen and signature == previous:
-                try:
-                    E = read_complete(path, job.leaves.n)
-                except (InputFileError, OSError) as exc:
-                    log(f"RadTR warning: {exc}; skipped, waiting for a complete file (tried again in {interval:g} s)")
-                else:
-                    shown.append(_show(job, meshes, E, out_dir / f"watch_{len(shown):04d}.png"))
-                    log(f"RadTR: {path.name} changed; rendered {shown[-1]}")
-                    seen = signature
-            previous = signature
+            watcher.poll(interval)
             sleep(interval)
     finally:
-        meshes.restore(saved)
-    return shown
+        watcher.close()
+    return watcher.shown
 
 
 def toggle_patch(job, origin, direction, emission: np.ndarray) -> tuple[int, np.ndarray]:
