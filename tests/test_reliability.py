@@ -132,7 +132,8 @@ def test_the_memory_budget_can_be_raised():
 def test_sky_form_factors_over_the_budget_are_refused_with_the_patch_count(cornell):
     bpy = cornell
     before = state(bpy)
-    with pytest.raises(SettingsError, match=r"a sky dome of 8,100 points \(steps 2 x 2 degrees\) x [\d,]+ patches needs [\d,]+ MB"):
+    refused = r"a sky dome of 8,100 points \(steps 2 x 2 degrees\) x [\d,]+ patches needs [\d,]+ MB"
+    with pytest.raises(SettingsError, match=refused):
         solve(bpy.context, Settings(sky="uniform", sky_step=2.0, cache_mb=20, **FAST), log=quiet)
     assert state(bpy) == before
 
