@@ -5,6 +5,7 @@ from bpy.props import (
     CollectionProperty,
     EnumProperty,
     FloatProperty,
+    FloatVectorProperty,
     IntProperty,
     PointerProperty,
     StringProperty,
@@ -37,6 +38,15 @@ class RADTR_PG_scenario(bpy.types.PropertyGroup):
     weight: FloatProperty(
         name="Weight", default=0.0, min=0.0, soft_max=2.0, update=_scenario_weight_changed,
         description="How much of this scenario's light the result meshes and the flashlight show")
+
+
+class RADTR_PG_view(bpy.types.PropertyGroup):
+    """A saved viewpoint (``radtr_addon.blender.viewpoints``): the viewport's target, turn, distance, lens."""
+
+    location: FloatVectorProperty(name="Target", size=3, subtype="TRANSLATION")
+    rotation: FloatVectorProperty(name="Rotation", size=4, subtype="QUATERNION", default=(1.0, 0.0, 0.0, 0.0))
+    distance: FloatProperty(name="Distance", default=10.0, min=0.0)
+    lens: FloatProperty(name="Lens", default=50.0, min=1.0, description="Focal length in mm (36 mm sensor)")
 
 
 class RADTR_PG_settings(bpy.types.PropertyGroup):
@@ -161,6 +171,7 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         description="Memory the form factors and the largest work arrays may take; larger work is "
                     "refused, with the size it needs, before it starts")
     scenarios: CollectionProperty(type=RADTR_PG_scenario)
+    views: CollectionProperty(type=RADTR_PG_view)
     mode: EnumProperty(
         name="Result", default=_D.mode,
         items=[("COPY", "Copies", "Subdivided copies in a 'RadTR' collection; sources hidden"),
@@ -173,7 +184,7 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         return settings
 
 
-_register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_scenario, RADTR_PG_settings))
+_register, _unregister = bpy.utils.register_classes_factory((RADTR_PG_scenario, RADTR_PG_view, RADTR_PG_settings))
 
 
 def register():

@@ -135,6 +135,19 @@ class RADTR_PT_views(_SubPanel, bpy.types.Panel):
         row = col.row(align=True)
         row.operator("radtr.patch_view", icon="IMAGE_DATA")
         row.operator("radtr.view_from_patch", icon="VIEW_CAMERA")
+        col.operator("radtr.pick_view", icon="RESTRICT_SELECT_OFF")
+        if context.region_data is not None:
+            from ..radtr_addon.blender.viewpoints import info_line
+
+            col.label(text=info_line(context.region_data))
+        for i, view in enumerate(s.views):
+            row = col.row(align=True)
+            row.operator("radtr.view_recall", text=view.name, icon="HIDE_OFF").index = i
+            row.operator("radtr.view_remove", text="", icon="X").index = i
+        col.operator("radtr.view_store", icon="ADD")
+        row = col.row(align=True)
+        row.operator("radtr.capture", icon="RENDER_STILL").kind = "RENDER"
+        row.operator("radtr.capture", text="Viewport", icon="RESTRICT_VIEW_OFF").kind = "VIEWPORT"
         col.operator("radtr.clear", icon="TRASH")
 
 

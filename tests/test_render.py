@@ -62,7 +62,8 @@ def test_render_through_a_named_camera(cornell, tmp_path):
     data = bpy.data.cameras.new("side")
     side = bpy.data.objects.new("side", data)
     bpy.context.scene.collection.objects.link(side)
-    with pytest.raises(SceneError, match="no camera 'nope' in scene .* \\(cameras: camera, side\\)"):
+    missing = "no camera or saved view 'nope' in scene .* \\(cameras: camera, side; saved views: none\\)"
+    with pytest.raises(SceneError, match=missing):
         render_png(bpy.context.scene, str(tmp_path / "x.png"), camera="nope")
     render_png(bpy.context.scene, str(tmp_path / "side.png"), camera="side")
     assert bpy.context.scene.camera.name == "camera"           # the scene's own camera again
@@ -73,4 +74,4 @@ def test_cli_camera_flag_names_a_missing_camera(tmp_path):
     run = subprocess.run([sys.executable, "-m", "radtr_addon", "solve", "cornell_box", "--max-area", "0.05",
                           "--method", "embree", "--rays", "16", "--render", str(tmp_path / "r.png"),
                           "--camera", "nope"], cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert run.returncode == 2 and "no camera 'nope'" in run.stderr
+    assert run.returncode == 2 and "no camera or saved view 'nope'" in run.stderr

@@ -24,23 +24,32 @@ def _owner(scene, path):
     return obj
 
 
-def render_png(bl_scene, path: str, samples: int = 16, camera: str = ""):
-    """Render ``bl_scene`` to ``path`` through the camera object named ``camera``, else the
-    scene's camera, else one framing the scene from the front (the walls it sees from behind
-    are see-through: ``write.display_material``)."""
+def render_png(bl_scene, path: str, samples: int = 16, camera: str = "", animation: bool = False):
+    """Render ``bl_scene`` to ``path`` through the camera object or saved view (``viewpoints``)
+    named ``camera``, else the scene's camera, else one framing the scene from the front (the
+    walls it sees from behind are see-through: ``write.display_material``). ``animation``: every
+    frame of the scene's range, ``path`` the prefix of the numbered PNGs (a camera on a path
+    flies along it)."""
     import bpy
 
     from ..errors import SceneError
+    from .viewpoints import camera_from_view
 
     saved = [(p, a, getattr(_owner(bl_scene, p), a)) for p, a in _SETTINGS]
-    scene_camera = bl_scene.camera
+    scene_camera, temp_cam = bl_scene.camera, None
     if camera:
         obj = bl_scene.objects.get(camera)
-        if obj is None or obj.type != "CAMERA":
+        view = bl_scene.radtr.views.get(camera) if hasattr(bl_scene, "radtr") else None
+        if (obj is None or obj.type != "CAMERA") and view is None:
             have = ", ".join(o.name for o in bl_scene.objects if o.type == "CAMERA") or "none"
-            raise SceneError(f"no camera '{camera}' in scene '{bl_scene.name}' (cameras: {have})")
+            views = ", ".join(v.name for v in bl_scene.radtr.views) if hasattr(bl_scene, "radtr") else ""
+            raise SceneError(f"no camera or saved view '{camera}' in scene '{bl_scene.name}' (cameras: {have}; "
+                             f"saved views: {views or 'none'})")
+        if obj is None or obj.type != "CAMERA":
+            obj = temp_cam = camera_from_view(bl_scene, view)
         bl_scene.camera = obj
-    temp_cam = None if bl_scene.camera else _frame_camera(bl_scene)
+    if bl_scene.camera is None:
+        temp_cam = _frame_camera(bl_scene)
     try:
         r = bl_scene.render
         r.engine = "CYCLES"
@@ -53,7 +62,10 @@ def render_png(bl_scene, path: str, samples: int = 16, camera: str = ""):
         r.image_settings.file_format = "PNG"
         r.resolution_percentage = 100
         r.filepath = path
-        bpy.ops.render.render(write_still=True, scene=bl_scene.name)
+        if animation:
+            bpy.ops.render.render(animation=True, scene=bl_scene.name)
+        else:
+            bpy.ops.render.render(write_still=True, scene=bl_scene.name)
     finally:
         for p, a, v in saved:
             setattr(_owner(bl_scene, p), a, v)

@@ -1,0 +1,67 @@
+"""Saved viewpoints in the .blend (``scene.radtr.views``: name, target, rotation, distance,
+lens each) and what the viewer shows of a view: its eye, forward and right vectors.
+
+A view is the 3D viewport's own state (``RegionView3D``: it orbits a target ``location`` at
+``distance``, turned by ``rotation``); a camera made from it (``camera_from_view``) sees
+what the viewport saw, so ``--camera NAME`` and Capture render a saved view.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _quat_matrix(q) -> np.ndarray:
+    """3 x 3 rotation of the unit quaternion (w, x, y, z)."""
+    w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def eye_axes(location, rotation, distance) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(eye, forward, right) of a view orbiting ``location`` at ``distance``, turned by ``rotation``
+    (w, x, y, z): a view looks along its -Z, its +X to the right."""
+    R = _quat_matrix(rotation)
+    return np.asarray(location, float) + distance * R[:, 2], -R[:, 2], R[:, 0]
+
+
+def store_view(settings, rv3d, name: str, lens: float = 50.0):
+    """A new saved view (unique name) holding the viewport state ``rv3d`` and its ``lens`` (mm)."""
+    taken = {v.name for v in settings.views}
+    unique, k = name, 2
+    while unique in taken:
+        unique, k = f"{name} {k}", k + 1
+    item = settings.views.add()
+    item.name = unique
+    item.location, item.rotation = tuple(rv3d.view_location), tuple(rv3d.view_rotation)
+    item.distance, item.lens = float(rv3d.view_distance), lens
+    return item
+
+
+def recall_view(item, rv3d):
+    """Put the viewport ``rv3d`` where the saved view ``item`` was."""
+    rv3d.view_perspective = "PERSP"
+    rv3d.view_location, rv3d.view_rotation = tuple(item.location), tuple(item.rotation)
+    rv3d.view_distance = item.distance
+
+
+def camera_from_view(bl_scene, item):
+    """A temporary camera object at the saved view ``item`` (the caller removes it)."""
+    import bpy
+
+    eye, _, _ = eye_axes(item.location, item.rotation, item.distance)
+    data = bpy.data.cameras.new(f"RadTR view {item.name}")
+    data.lens, data.sensor_width, data.sensor_fit = item.lens, 36.0, "AUTO"
+    cam = bpy.data.objects.new(f"RadTR view {item.name}", data)
+    bl_scene.collection.objects.link(cam)
+    cam.location = tuple(eye)
+    cam.rotation_mode = "QUATERNION"
+    cam.rotation_quaternion = tuple(item.rotation)
+    return cam
+
+
+def info_line(rv3d) -> str:
+    """Eye, forward and right of the viewport ``rv3d``, for the panel."""
+    axes = eye_axes(rv3d.view_location, rv3d.view_rotation, rv3d.view_distance)
+    shown = ["(" + ", ".join(f"{x:.3g}" for x in v) + ")" for v in axes]
+    return "eye {}  forward {}  right {}".format(*shown)
