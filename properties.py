@@ -170,6 +170,10 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Memory Budget (MB)", default=_D.cache_mb, min=1,
         description="Memory the form factors and the largest work arrays may take; larger work is "
                     "refused, with the size it needs, before it starts")
+    scheduler: StringProperty(
+        name="Dask Scheduler", default=_D.scheduler,
+        description="Compute form-factor rows on a Dask cluster: local:N (N worker processes here) or "
+                    "tcp://HOST:PORT; empty: in Blender's process")
     scenarios: CollectionProperty(type=RADTR_PG_scenario)
     views: CollectionProperty(type=RADTR_PG_view)
     mode: EnumProperty(

@@ -45,6 +45,7 @@ class RADTR_PT_main(_RadTRPanel, bpy.types.Panel):
             col.prop(s, "sky_resolution")
         col.prop(s, "max_reflectance")
         col.prop(s, "cache_mb")
+        col.prop(s, "scheduler")
         col.prop(s, "mode", expand=True)
         row = col.row(align=True)
         row.operator("radtr.solve", icon="LIGHT_SUN")

@@ -98,8 +98,23 @@ class Solve:
         with self._stage("form_factor_init"):
             self.rows = FormFactors(self.leaves, settings.form_factors(), settings.cache_mb << 20)
         self._warn(self.rows.warnings)
+        if settings.scheduler:
+            self._on_cluster()
         with self._stage("solver_init"):
             self.solver = self._solver(self.leaves)
+
+    def _on_cluster(self):
+        """Rows from the Dask cluster ``settings.scheduler``: as many as the budget holds now
+        (a shooting solve asks for one at a time), the rest when asked."""
+        from .cluster import ClusterRows, connect
+
+        with self._stage("cluster_rows"):
+            self.cluster = ClusterRows(connect(self.settings.scheduler), self.leaves, self.rows.settings)
+            self.rows.compute_with(self.cluster)
+            held = self.rows.prefetch(np.arange(self.leaves.n))
+        if held < self.leaves.n:
+            self._warn([f"{held:,} of {self.leaves.n:,} form-factor rows fit the memory budget; the rest are "
+                        f"computed on the cluster when a solver asks (raise Memory Budget to keep all)"])
 
     def _solver(self, leaves):
         s = self.settings

@@ -70,6 +70,8 @@ class Settings:
     mode: str = option("COPY", "result: subdivided copies (COPY) or the sources' own meshes (REPLACE)",
                        RESULT_MODES)
     cache_mb: int = option(2048, "memory budget in MB for form factors and work arrays")
+    scheduler: str = option("", "compute form-factor rows on a Dask cluster: local:N (N worker processes here) or "
+                                "tcp://HOST:PORT; empty: in this process")
 
     @classmethod
     def of(cls, source) -> "Settings":
@@ -86,6 +88,10 @@ class Settings:
                 raise SettingsError(f"{f.name.replace('_', ' ')} must be one of {', '.join(choices)}, "
                                     f"got {getattr(self, f.name)!r}")
         self.form_factors().validate()
+        if self.scheduler:
+            from .cluster import parse
+
+            parse(self.scheduler)
         for label, value, ok, need in (
                 ("max area", s.max_area, s.max_area >= 0 and np.isfinite(s.max_area), "0 (auto) or more"),
                 ("levels", s.levels, s.levels >= 0, "0 or more"),
@@ -102,7 +108,11 @@ class Settings:
                  "0 (the azimuth step) or at most 90 degrees"),
                 ("max reflectance", s.max_reflectance, 0 <= s.max_reflectance <= 1, "between 0 and 1"),
                 ("exposure", s.exposure, 0 <= s.exposure < np.inf, "0 or more"),
-                ("memory budget", s.cache_mb, s.cache_mb >= 1, "at least 1 MB")):
+                ("memory budget", s.cache_mb, s.cache_mb >= 1, "at least 1 MB"),
+                ("scheduler", s.scheduler, not s.scheduler or s.method == "embree",
+                 "empty with a GPU form-factor method (Dask workers have no GPU context): use --method embree"),
+                ("scheduler", s.scheduler, not s.scheduler or s.solver != "hierarchical",
+                 "empty with the hierarchical solver (it computes its links in this process)")):
             if not ok:
                 raise SettingsError(f"{label} must be {need}, got {value!r}")
         for what, need in self.memory(patches).items():

@@ -67,7 +67,7 @@ def test_to_settings_copies_every_field(blend):
                    split_level=7, rays=99, solver="jacobi", quality=0.2, user_solver="m:f", tolerance=0.01,
                    max_iterations=5, precision="float32", ambient=True, gather_rays=16, sky="uniform",
                    sky_radiance=2.0, sky_step=15.0, sky_altitude_step=5.0, sky_resolution=64, max_reflectance=0.5,
-                   exposure=2.0, mode="REPLACE", cache_mb=99)
+                   exposure=2.0, mode="REPLACE", cache_mb=99, scheduler="local:2")
     assert set(changed) == {f.name for f in fields(Settings)}
     for name, value in changed.items():
         setattr(props, name, value)

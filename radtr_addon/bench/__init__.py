@@ -24,10 +24,10 @@ def _fmt(v) -> str:
 
 def run_benchmark(name: str, quick: bool = False, json_path: str | None = None) -> int:
     """Run benchmark ``name``; it returns one table (rows) or several ({title: rows})."""
-    from . import adaptive, formfactors, realtime, skeleton, solvers
+    from . import adaptive, distributed, formfactors, realtime, skeleton, solvers
 
     benches = {"skeleton": skeleton.run, "formfactors": formfactors.run, "solvers": solvers.run,
-               "realtime": realtime.run, "adaptive": adaptive.run}
+               "realtime": realtime.run, "adaptive": adaptive.run, "distributed": distributed.run}
     if name not in benches:
         raise RadTRError(f"no benchmark '{name}' (have: {', '.join(benches)})")
     rows = benches[name](quick=quick)

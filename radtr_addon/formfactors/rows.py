@@ -73,6 +73,20 @@ class RowCache:
                 f"cache budget of {self.budget_bytes / 2**30:.2f} GiB: raise the budget, use fewer "
                 f"patches, or a solver that recomputes rows (shooting, Jacobi, Gauss-Seidel)")
 
+    def compute_with(self, compute: Callable[[np.ndarray], list[Row]]):
+        """Compute missing rows with ``compute`` from now on (e.g. ``cluster.ClusterRows``)."""
+        self._compute = compute
+
+    def prefetch(self, ids, chunk: int = 4096) -> int:
+        """Compute and keep the rows of ``ids``, ``chunk`` at a time, until the budget is full;
+        returns how many are held (the rest are computed when asked)."""
+        ids = np.asarray(ids, dtype=np.int64)
+        for start in range(0, len(ids), chunk):
+            if self.bytes >= self.budget_bytes:
+                break
+            self.rows(ids[start:start + chunk])
+        return len(self.held)
+
     def row(self, i: int) -> Row:
         return self.get(int(i))
 
