@@ -70,11 +70,14 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
     split: EnumProperty(
         name="Split", default=_D.split,
         items=[("none", "None", "Plain projection: straight edges, darker junctions"),
-               ("uniform", "Uniform", "Every triangle drawn as an N x N grid"),
+               ("triangle", "Triangle", "Longest-edge bisection, edges cut in N rounded up to a power of 2"),
+               ("centre", "Centre", "A fan of 3N triangles from the centroid, edges cut in N"),
+               ("uniform", "Uniform", "Every triangle drawn as an N x N grid (the seed's homogeneous split)"),
+               ("diagonal", "Diagonal", "A zigzag strip of 3N - 2 triangles, edges cut in N"),
                ("adaptive", "Adaptive", "Each triangle split by how wide it looks from the patch")])
     split_level: IntProperty(
         name="Split N", default=_D.split_level, min=1, max=64,
-        description="Uniform split: each triangle drawn as N x N sub-triangles")
+        description="Split level N of the triangle, centre, uniform and diagonal splits")
     rays: IntProperty(
         name="Rays", default=_D.rays, min=1, soft_max=65536,
         description="Rays per patch (rounded to a square number): error falls as 1 / sqrt(rays)")

@@ -3,6 +3,7 @@ solve, and sub-panels for the form factors, the flashlight, lighting scenarios a
 import bpy
 
 from ..operators.session import running
+from ..radtr_addon.formfactors.methods import LEVELLED_SPLITS
 
 
 class _RadTRPanel:
@@ -86,7 +87,7 @@ class RADTR_PT_form_factors(_SubPanel, bpy.types.Panel):
             col.prop(s, "rotate")
         elif s.method == "paraboloid":
             col.prop(s, "split")
-            if s.split == "uniform":
+            if s.split in LEVELLED_SPLITS:
                 col.prop(s, "split_level")
 
 

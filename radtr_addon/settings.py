@@ -47,7 +47,7 @@ class Settings:
     resolution: int = option(_FF.resolution, "hemicube face / paraboloid disk pixels")
     rotate: bool = option(_FF.rotate, "hemicube: random turn about each normal")
     split: str = option(_FF.split, "paraboloid: how triangles are split to follow the curve", SPLIT_MODES)
-    split_level: int = option(_FF.split_level, "paraboloid uniform split N")
+    split_level: int = option(_FF.split_level, "paraboloid split level N (triangle, centre, uniform, diagonal)")
     rays: int = option(_FF.rays, "embree rays per patch")
     solver: str = option("shooting", "radiosity solver (hierarchical: adaptive patches and links, see --quality)",
                          ALL_SOLVERS)

@@ -47,7 +47,11 @@ def test_bench_formfactors_quick_orders_the_settings(tmp_path):
     out = run("bench", "formfactors", "--quick", "--json", str(tmp_path / "f.json"), cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-2000:]
     assert (tmp_path / "out" / "formfactors.png").stat().st_size > 10_000
-    rms = {r["method"]: r["rms_error"] for r in json.loads((tmp_path / "f.json").read_text())}
+    tables = json.loads((tmp_path / "f.json").read_text())
+    rms = {r["method"]: r["rms_error"] for r in tables["methods"]}
+    split = {r["mode"]: r for r in tables["split modes"]}
+    assert list(split) == ["none", "triangle", "centre", "uniform", "diagonal", "adaptive"]
+    assert all(split[m]["row_sum_error"] < split["none"]["row_sum_error"] for m in split if m != "none")
     assert rms["hemicube 256"] < rms["hemicube 64"] / 2
     assert rms["paraboloid 256 split adaptive 0.002"] < rms["paraboloid 256 split none"] / 5
     assert rms["embree 4096 rays"] < rms["embree 256 rays"] / 2

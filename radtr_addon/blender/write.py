@@ -59,9 +59,10 @@ def build_mesh(name: str, vertices: np.ndarray, part: MeshPart, B: np.ndarray, p
 
 
 def display_material(exposure: float = 1.0):
-    """The material that shows ``radtr_radiosity`` as radiance B / pi times ``exposure`` on the
-    side that was solved; a back face is see-through, so a closed room seen from outside shows
-    its lit inside (a dollhouse view) and a wall seen from behind does not hide the room."""
+    """The material that shows ``radtr_radiosity`` as radiance B / pi times ``exposure``; a back
+    face is see-through to the camera (only: a bake still sees its light), so a closed room seen
+    from outside shows its lit inside (a dollhouse view) and a wall seen from behind does not
+    hide the room."""
     import bpy
 
     mat = bpy.data.materials.get(DISPLAY_MATERIAL)
@@ -76,14 +77,18 @@ def display_material(exposure: float = 1.0):
         attr.attribute_name = "radtr_radiosity"
         emit = nodes.new("ShaderNodeEmission")
         emit.name = EMISSION_NODE
-        back, clear, mix = (nodes.new(kind) for kind in
-                            ("ShaderNodeNewGeometry", "ShaderNodeBsdfTransparent", "ShaderNodeMixShader"))
+        back, path, both, clear, mix = (nodes.new(kind) for kind in (
+            "ShaderNodeNewGeometry", "ShaderNodeLightPath", "ShaderNodeMath", "ShaderNodeBsdfTransparent",
+            "ShaderNodeMixShader"))
+        both.operation = "MULTIPLY"
         out = nodes.new("ShaderNodeOutputMaterial")
-        for node, xy in ((attr, (-400, 0)), (emit, (-150, 0)), (back, (-150, 250)), (clear, (-150, -150)),
-                         (mix, (100, 0)), (out, (300, 0))):
+        for node, xy in ((attr, (-400, 0)), (emit, (-150, 0)), (back, (-400, 300)), (path, (-400, 600)),
+                         (both, (-150, 300)), (clear, (-150, -150)), (mix, (100, 0)), (out, (300, 0))):
             node.location = xy
         links.new(attr.outputs["Color"], emit.inputs["Color"])
-        links.new(back.outputs["Backfacing"], mix.inputs["Fac"])
+        links.new(back.outputs["Backfacing"], both.inputs[0])
+        links.new(path.outputs["Is Camera Ray"], both.inputs[1])
+        links.new(both.outputs["Value"], mix.inputs["Fac"])
         links.new(emit.outputs["Emission"], mix.inputs[1])
         links.new(clear.outputs["BSDF"], mix.inputs[2])
         links.new(mix.outputs["Shader"], out.inputs["Surface"])

@@ -15,8 +15,12 @@ from .rows import RowCache
 
 METHODS = ("hemicube", "paraboloid", "embree")
 GPU_METHODS = ("hemicube", "paraboloid")
-#: Paraboloid: how each triangle is split before projection (see ``paraboloid``).
-SPLIT_MODES = ("none", "uniform", "adaptive")
+#: Paraboloid: how each triangle is split before projection (see ``paraboloid``), in the seed's
+#: order (report 4.5.1, Anexo J): none, triangle (longest edge), centre, uniform (the seed's
+#: homogeneous), diagonal, adaptive (ours, for the seed's tessellation shader).
+SPLIT_MODES = ("none", "triangle", "centre", "uniform", "diagonal", "adaptive")
+#: Split modes whose depth ``split_level`` sets.
+LEVELLED_SPLITS = ("triangle", "centre", "uniform", "diagonal")
 #: Paraboloid adaptive split: the largest arc-chord gap, in disk radii.
 DEFAULT_SPLIT_TOLERANCE = 2e-3
 
@@ -28,8 +32,8 @@ class FormFactorSettings:
     method: str = "hemicube"
     resolution: int = 64           # hemicube pixels across the full face / paraboloid disk
     rotate: bool = False           # hemicube: random turn about the normal per patch
-    split: str = "adaptive"        # paraboloid: none | uniform | adaptive
-    split_level: int = 4           # paraboloid uniform: N x N sub-triangles
+    split: str = "adaptive"        # paraboloid: one of SPLIT_MODES
+    split_level: int = 4           # paraboloid triangle / centre / uniform / diagonal: level N
     split_tolerance: float = DEFAULT_SPLIT_TOLERANCE
     rays: int = 1024               # embree: rays per row
     seed: int = 0                  # embree jitter and hemicube rotation
@@ -39,8 +43,12 @@ class FormFactorSettings:
         if self.method == "hemicube":
             return f"hemicube {self.resolution}" + (" rotated" if self.rotate else "")
         if self.method == "paraboloid":
-            split = {"uniform": f"uniform {self.split_level}", "adaptive": f"adaptive {self.split_tolerance:g}"}
-            return f"paraboloid {self.resolution} split {split.get(self.split, self.split)}"
+            split = self.split
+            if split in LEVELLED_SPLITS:
+                split = f"{split} {self.split_level}"
+            elif split == "adaptive":
+                split = f"adaptive {self.split_tolerance:g}"
+            return f"paraboloid {self.resolution} split {split}"
         return f"embree {self.rays} rays"
 
     def validate(self):
@@ -50,6 +58,8 @@ class FormFactorSettings:
             raise SettingsError(f"hemicube resolution must be even and >= 2, got {self.resolution}")
         if self.split not in SPLIT_MODES:
             raise SettingsError(f"split mode must be one of {', '.join(SPLIT_MODES)}, got '{self.split}'")
+        if self.method == "paraboloid" and self.split in LEVELLED_SPLITS and not 1 <= self.split_level <= 64:
+            raise SettingsError(f"split level must be 1 to 64, got {self.split_level}")
         if self.rays < 1:
             raise SettingsError(f"rays per row must be at least 1, got {self.rays}")
 
