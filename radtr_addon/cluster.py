@@ -1,4 +1,4 @@
-"""Form-factor rows on a Dask cluster: ``--scheduler local:N`` (a LocalCluster of N worker
+"""Form-factor rows (and the sky's dome points) on a Dask cluster: ``--scheduler local:N`` (a LocalCluster of N worker
 processes on this machine) or ``--scheduler tcp://HOST:PORT`` (an existing cluster).
 
 The scene goes to every worker once (``scatter``, broadcast); rows are asked for in blocks of
@@ -110,3 +110,34 @@ class ClusterRows:
             self.seconds["worker"] += seconds
         self.seconds["wall"] += time.perf_counter() - t0
         return out
+
+
+def _dome_block(scene, directions, resolution):
+    """On a worker: ``sky.dome_rows`` of a block of dome points, with the worker's caster."""
+    from .formfactors.raycast import EmbreeRays
+    from .sky import dome_rows
+
+    key = (id(scene), "sky")
+    if key not in _CASTERS:
+        _CASTERS.clear()
+        _CASTERS[key] = EmbreeRays(scene, 1)
+    return dome_rows(scene, directions, resolution, _CASTERS[key])
+
+
+def dome_row_steps(spec: str, scene, directions, resolution: int):
+    """``sky.dome_rows`` of every dome point on the cluster ``spec``, in blocks (several a
+    worker); yields the fraction of blocks done, returns the rows in dome order."""
+    from distributed import as_completed
+
+    client = connect(spec)
+    workers = max(1, len(client.scheduler_info()["workers"]))
+    blocks = [b for b in np.array_split(np.arange(len(directions)), min(len(directions), BLOCKS_PER_WORKER * workers))
+              if len(b)]
+    remote = client.scatter(scene, broadcast=True)
+    futures = [client.submit(_dome_block, remote, directions[b], resolution, pure=False) for b in blocks]
+    order = {f.key: k for k, f in enumerate(futures)}
+    done: dict[int, list] = {}
+    for future in as_completed(futures):
+        done[order[future.key]] = future.result()
+        yield len(done) / len(blocks)
+    return [row for k in range(len(blocks)) for row in done[k]]

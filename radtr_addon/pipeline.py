@@ -228,7 +228,7 @@ class Solve:
         s = self.settings
         models = {"uniform": uniform_sky, "cie": cie_overcast}
         s.validate(self.leaves.n)
-        self.sky = sky_factors(self.leaves, *s.sky_steps, s.sky_resolution)
+        self.sky = sky_factors(self.leaves, *s.sky_steps, s.sky_resolution, s.scheduler)
         return self.sky.irradiance(models[s.sky](self.sky, s.sky_radiance))
 
     @contextmanager

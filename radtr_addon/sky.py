@@ -64,33 +64,52 @@ def dome(alpha: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
     return np.array(dirs), np.array(omega)
 
 
-def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256) -> SkyFactors:
-    """Sky form factors of ``scene`` (Embree parallel rays from each dome point)."""
+def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256,
+                scheduler: str = "") -> SkyFactors:
+    """Sky form factors of ``scene`` (Embree parallel rays from each dome point; on the Dask
+    cluster ``scheduler`` names, when it is not empty)."""
     from .tasks import run
 
-    return run(sky_factor_steps(scene, alpha, beta, resolution))
+    return run(sky_factor_steps(scene, alpha, beta, resolution, scheduler))
 
 
-def sky_factor_steps(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256):
-    """``sky_factors`` as steps (``tasks``): yields the fraction done after each dome point,
-    returns the SkyFactors."""
+def dome_rows(scene, directions: np.ndarray, resolution: int, caster=None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(patch ids, S values) seen from each dome point in ``directions`` (k, 3)."""
     from .formfactors.raycast import EmbreeRays
 
-    directions, omega = dome(alpha, beta)
-    caster = EmbreeRays(scene, 1)
+    caster = caster or EmbreeRays(scene, 1)
     centre, radius = bounding_sphere(scene.vertices)
     pixel_area = (2 * radius / resolution) ** 2
-    rows, cols, vals = [], [], []
-    for p, d in enumerate(directions):
+    out = []
+    for d in directions:
         hit = caster.hit(*parallel_rays(centre, radius, d, resolution))
         front = (hit >= 0) & (scene.normals[np.maximum(hit, 0)] @ d > 0)
         counts = hit_histogram(hit[front], 1, scene.n)[0]
         ids = np.flatnonzero(counts)
-        rows += [p] * len(ids)
-        cols += ids.tolist()
-        vals += (counts[ids] * pixel_area / scene.areas[ids]).tolist()
-        yield (p + 1) / len(directions)
+        out.append((ids, counts[ids] * pixel_area / scene.areas[ids]))
+    return out
+
+
+def sky_factor_steps(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int = 256, scheduler: str = ""):
+    """``sky_factors`` as steps (``tasks``): yields the fraction done after each dome point
+    (each block of them on a cluster), returns the SkyFactors."""
+    from .formfactors.raycast import EmbreeRays
+
+    directions, omega = dome(alpha, beta)
+    if scheduler:
+        from .cluster import dome_row_steps
+
+        per_point = yield from dome_row_steps(scheduler, scene, directions, resolution)
+    else:
+        caster, per_point = EmbreeRays(scene, 1), []
+        for p, d in enumerate(directions):
+            per_point += dome_rows(scene, d[None], resolution, caster)
+            yield (p + 1) / len(directions)
+    rows = np.repeat(np.arange(len(directions)), [len(ids) for ids, _ in per_point])
+    cols = np.concatenate([ids for ids, _ in per_point])
+    vals = np.concatenate([v for _, v in per_point])
     S = sp.csr_matrix((vals, (rows, cols)), shape=(len(directions), scene.n))
+    centre, radius = bounding_sphere(scene.vertices)
     return SkyFactors(directions, centre + 2 * radius * directions, omega, S)
 
 

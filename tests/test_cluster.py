@@ -14,6 +14,7 @@ from radtr_addon.errors import SettingsError
 from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
 from radtr_addon.hierarchy import subdivide
 from radtr_addon.pipeline import SceneInput, Solve, solve
+from radtr_addon.scene import PatchScene
 from radtr_addon.settings import Settings
 
 SPEC = "local:2"
@@ -82,3 +83,15 @@ def test_cornell_solve_through_blender_on_the_cluster_is_byte_identical(cornell)
     cornell.ops.radtr.clear()
     there = solve_blend(cornell.context, Settings(**settings, scheduler=SPEC), log=lambda *_: None)
     assert here.leaves.n > 500 and here.B.tobytes() == there.B.tobytes()
+
+
+def test_sky_form_factors_on_the_cluster_are_the_same_matrix():
+    from radtr_addon.sky import sky_factors
+
+    inward = cube()
+    outward = PatchScene(inward.vertices, inward.triangles[:, ::-1], 0.5, 0.0, 0, 0)   # a box seen from the sky
+    leaves = subdivide(outward, 1 / 50, 1).leaves
+    here = sky_factors(leaves, 30, 30, 64)
+    there = sky_factors(leaves, 30, 30, 64, scheduler=SPEC)
+    assert here.S.nnz > 0 and (here.S != there.S).nnz == 0
+    np.testing.assert_array_equal(here.directions, there.directions)
