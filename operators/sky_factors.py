@@ -29,7 +29,8 @@ class RADTR_OT_sky_factors(ModalTask, bpy.types.Operator):
             return {"CANCELLED"}
         self._job = job
         folder = bpy.path.abspath(self.out_dir) if self.images else None
-        return self._run_steps(context, sky_steps(job.leaves, self.alpha, self.beta, self.resolution, folder))
+        return self._run_steps(context, sky_steps(job.leaves, self.alpha, self.beta, self.resolution, folder,
+                                                  scheduler=context.scene.radtr.scheduler))
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self)

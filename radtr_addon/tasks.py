@@ -81,13 +81,15 @@ def scaled(steps, start: float, share: float):
         yield start + share * fraction
 
 
-def sky_steps(scene, alpha: float, beta: float, resolution: int, image_dir=None, image_resolution: int = 128):
-    """Sky form factors of ``scene`` (``sky.sky_factor_steps``) and, with ``image_dir``, one PNG a
-    dome point (``sky.sky_image_steps``). Yields the fraction done; returns (SkyFactors, PNG paths)."""
+def sky_steps(scene, alpha: float, beta: float, resolution: int, image_dir=None, image_resolution: int = 128,
+              scheduler: str = ""):
+    """Sky form factors of ``scene`` (``sky.sky_factor_steps``, on the Dask cluster ``scheduler``
+    names if any) and, with ``image_dir``, one PNG a dome point (``sky.sky_image_steps``).
+    Yields the fraction done; returns (SkyFactors, PNG paths)."""
     from .sky import sky_factor_steps, sky_image_steps
 
     share = 0.5 if image_dir else 1.0
-    sky = yield from scaled(sky_factor_steps(scene, alpha, beta, resolution), 0.0, share)
+    sky = yield from scaled(sky_factor_steps(scene, alpha, beta, resolution, scheduler), 0.0, share)
     paths = []
     if image_dir:
         paths = yield from scaled(sky_image_steps(scene, sky, image_dir, image_resolution), share, share)
