@@ -69,8 +69,19 @@ def test_backends_match_numpy_float64(box, name, mono):
     rng = np.random.default_rng(0)
     E = rng.uniform(0, 2, (lr.n, lr.channels))
     ref = lr.solve(E)
-    got = make_backend(name, lr, np.float32).solve(E)
-    assert np.abs(got - ref).max() <= 1e-5 * np.abs(ref).max()
+    backend = make_backend(name, lr, np.float32)
+    got = backend.solve(E)
+    if backend.exact:
+        assert np.abs(got - ref).max() <= 1e-5 * np.abs(ref).max()
+        return
+    # a compressed U: within its own bound (plus float32 rounding), and far from nothing
+    from radtr_addon.lowrank.backends import int8_error_bound
+
+    bound = int8_error_bound(backend.scale, lr.coefficients(E), lr.rho)
+    assert np.all(np.abs(got - ref) <= bound + 1e-5 * np.abs(ref).max())
+    error = np.abs(got - ref).max() / np.abs(ref - E).max()
+    print(f"{name}: largest error {error:.2e} of the largest reflected light, bound {bound.max():.2e}")
+    assert 0 < error < 0.02
 
 
 def test_a_backend_that_cannot_build_is_reported_with_the_reason_and_falls_back(box, monkeypatch):

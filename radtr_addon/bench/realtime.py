@@ -15,7 +15,9 @@ largest fraction, over every 4th pose, of lit patches whose grouped shadow test 
 a ray per patch; ms per frame by stage (visibility of the spot, the k-sized coefficients,
 the n x k product, write-back into the Blender meshes) and updates per second, over
 ``FRAMES`` spot poses, one run each (2 busy cores make single figures vary by tens of
-percent); ``bound_ms`` is the time a memory-bound product would need: U's bytes over the read
+percent); ``error``: the back-end's largest error against numpy float64 for the first pose,
+over the largest reflected light (float32 rounding; with ``opencl-int8``, what its 8-bit U
+adds); ``bound_ms`` is the time a memory-bound float32 product would need: U's bytes over the read
 bandwidth of a numpy copy of the same size, measured in the same run (below a few MB, U
 stays in cache and this is no bound).
 """
@@ -105,7 +107,17 @@ def frames(job, lowrank, backend: str, mono: bool) -> dict:
     lit = [int((light.emission(spot) != E0).any(axis=1).sum()) for spot in poses]
     return {"backend": backend, "mode": "mono" if mono else "colour", "lit_min": min(lit), "lit_max": max(lit),
             "rays": round(rays), "shadow_misses": round(shadow_misses(light, poses[::4]), 4),
-            **row, "updates_s": round(FRAMES / total, 1)}
+            "error": float(f"{backend_error(light, poses[0]):.2e}"), **row, "updates_s": round(FRAMES / total, 1)}
+
+
+def backend_error(light, spot) -> float:
+    """Largest |B - B float64| of the light's back-end for ``spot``, over the largest reflected
+    light: float32 rounding, and what a compressed U adds."""
+    from ..lowrank.backends import make_backend
+
+    E = light.emission(spot)
+    ref = make_backend("numpy", light.backend.lowrank, np.float64).solve(E)
+    return float(np.abs(light.backend.solve(E) - ref).max() / np.abs(ref - E).max())
 
 
 def run(quick: bool = False) -> dict[str, list[dict]]:

@@ -92,6 +92,8 @@ class NumpyBackend:
     transposed on U's row-major storage, which OpenBLAS reads once.
     """
 
+    exact = True
+
     def __init__(self, lowrank, dtype=np.float32):
         from scipy.linalg import blas
 
@@ -165,6 +167,9 @@ class OpenCLBackend:
     """U in an OpenCL device's memory (PoCL on the CPU here, a GPU where present); one kernel
     per frame, one work-item per patch."""
 
+    exact = True                        # equals numpy float64 to float32 rounding
+    source = _KERNEL
+
     probe = staticmethod(opencl_build_error)
 
     def __init__(self, lowrank, dtype=np.float32):
@@ -174,10 +179,9 @@ class OpenCLBackend:
         self.ctx = cl.create_some_context(interactive=False)
         self.queue = cl.CommandQueue(self.ctx)
         real = "float" if self.dtype == np.float32 else "double"
-        self.kernel = cl.Kernel(cl.Program(self.ctx, _KERNEL.replace("REAL", real)).build(), "product")
+        self.kernel = cl.Kernel(cl.Program(self.ctx, self.source.replace("REAL", real)).build(), "product")
         mf = cl.mem_flags
-        U = np.ascontiguousarray(lowrank.U.T, dtype=self.dtype)
-        self.U = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=U)
+        self.U = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=self._device_U(lowrank))
         self.rho = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=np.ascontiguousarray(lowrank.rho, dtype=self.dtype))
         self.out = np.empty(lowrank.rho.shape, dtype=self.dtype)
@@ -185,10 +189,18 @@ class OpenCLBackend:
         self.seconds = {"coefficients": 0.0, "product": 0.0}
         self.device = self.ctx.devices[0].name
 
+    def _device_U(self, lowrank) -> np.ndarray:
+        """U as the kernel reads it: by columns (U^T, row-major)."""
+        return np.ascontiguousarray(lowrank.U.T, dtype=self.dtype)
+
+    def coefficients(self, E: np.ndarray) -> np.ndarray:
+        """Z (k, channels) the kernel multiplies U by."""
+        return self.lowrank.coefficients(E)
+
     def solve(self, E: np.ndarray) -> np.ndarray:
         cl = self.cl
         t0 = time.perf_counter()
-        Z = np.ascontiguousarray(self.lowrank.coefficients(E), dtype=self.dtype)
+        Z = np.ascontiguousarray(self.coefficients(E), dtype=self.dtype)
         t1 = time.perf_counter()
         mf = cl.mem_flags
         z = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=Z)
@@ -201,5 +213,38 @@ class OpenCLBackend:
         return self.out.copy()
 
 
+def quantize_columns(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """U (n, k) as 8-bit integers by column, stored as U^T (k, n) int8, and the column scales
+    (k,): U ~ q x scale, each entry off by at most scale / 2 (``int8_error_bound``)."""
+    scale = np.abs(U).max(axis=0) / 127.0
+    scale[scale == 0] = 1.0
+    return np.ascontiguousarray(np.rint(U / scale).T.astype(np.int8)), scale
+
+
+def int8_error_bound(scale: np.ndarray, Z: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Largest |B error| (n, channels) 8-bit U can add for coefficients Z (k, channels):
+    rho x sum_g scale_g |Z_g| / 2."""
+    return rho * (0.5 * scale @ np.abs(Z))
+
+
+class OpenCLInt8Backend(OpenCLBackend):
+    """``OpenCLBackend`` reading U as 8-bit integers with a scale per column (a quarter of the
+    bytes of float32: the product is bound by reading U). The scales are folded into the
+    coefficients, so the kernel only widens each byte; the error it adds is bounded by
+    ``int8_error_bound`` (the bench reports it against float64)."""
+
+    exact = False
+    source = _KERNEL.replace("const REAL *UT", "const char *UT")
+    probe = staticmethod(lambda: opencl_build_error(OpenCLInt8Backend.source))
+
+    def _device_U(self, lowrank) -> np.ndarray:
+        q, self.scale = quantize_columns(lowrank.U)
+        return q
+
+    def coefficients(self, E: np.ndarray) -> np.ndarray:
+        return self.lowrank.coefficients(E) * self.scale[:, None]
+
+
 register("numpy", NumpyBackend)
 register("opencl", OpenCLBackend)
+register("opencl-int8", OpenCLInt8Backend)
