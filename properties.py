@@ -127,6 +127,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Back-End", default="numpy",
         items=[("numpy", "NumPy", "BLAS product on the CPU"),
                ("opencl", "OpenCL", "PyOpenCL: a GPU where present, PoCL on the CPU otherwise"),
+               ("opencl-int8", "OpenCL 8-bit", "OpenCL reading U as 8-bit integers with a scale per column: "
+                "a quarter of the bytes, about 0.3% error"),
                ("user", "User", "Your own function every frame: f(E=, U=, V=, rho=) -> B")])
     lowrank_user: StringProperty(
         name="Frame Function", default="",

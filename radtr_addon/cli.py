@@ -224,7 +224,7 @@ def main(argv=None) -> int:
     f.add_argument("--level", type=int, default=1, help="hierarchy level of the low-rank clusters")
     f.add_argument("--refine-to", type=int, default=0,
                    help="refine the level's clusters where the light is until there are this many")
-    f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy, opencl or user")
+    f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy, opencl, opencl-int8 (8-bit U) or user")
     f.add_argument("--user-frame", default="", help="with --backend user: module:function called every frame")
     add_arguments(f)
     f.set_defaults(func=cmd_flashlight)
