@@ -30,16 +30,29 @@ def mouse_ray(context, event):
             view3d_utils.region_2d_to_vector_3d(region, rv3d, xy))
 
 
-class ModalSolve:
-    """Runs a SolveJob from a timer: progress bar, status-bar readout, ESC cancels."""
+class _TimerModal:
+    """A modal operator on a timer with a progress bar; ``_close`` undoes what ``_begin`` set up."""
 
-    def _start(self, context, job):
-        running["job"] = job
+    def _begin(self, context):
         wm = context.window_manager
         wm.progress_begin(0, 100)
         self._timer = wm.event_timer_add(0.02, window=context.window)
         wm.modal_handler_add(self)
         return {"RUNNING_MODAL"}
+
+    def _close(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+
+
+class ModalSolve(_TimerModal):
+    """Runs a SolveJob from a timer: progress bar, status-bar readout, ESC cancels."""
+
+    def _start(self, context, job):
+        running["job"] = job
+        return self._begin(context)
 
     def modal(self, context, event):
         job = running["job"]
@@ -74,13 +87,10 @@ class ModalSolve:
 
     def _end(self, context):
         running["job"] = None
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        context.workspace.status_text_set(None)
+        self._close(context)
 
 
-class ModalTask:
+class ModalTask(_TimerModal):
     """Runs a task's steps (``radtr_addon.tasks``) from a timer: progress bar, status text, ESC
     closes the steps (their ``finally`` undoes what is half done). In background mode, or
     called from a script, it runs them to the end at once. Subclasses report in ``finished``."""
@@ -100,18 +110,14 @@ class ModalTask:
                 return {"CANCELLED"}
             return self.finished(context, result)
         self._steps = steps
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        self._timer = wm.event_timer_add(0.02, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
+        return self._begin(context)
 
     def modal(self, context, event):
         import time
 
         if event.type == "ESC":
             self._steps.close()
-            self._end(context)
+            self._close(context)
             self.report({"WARNING"}, f"RadTR: {self.what} cancelled")
             return {"CANCELLED"}
         if event.type != "TIMER":
@@ -121,22 +127,16 @@ class ModalTask:
             while time.perf_counter() < end:
                 fraction = next(self._steps)
         except StopIteration as done:
-            self._end(context)
+            self._close(context)
             return self.finished(context, done.value)
         except Exception as exc:
             self._steps.close()
-            self._end(context)
+            self._close(context)
             self.report({"ERROR"}, user_message(exc))
             return {"CANCELLED"}
         context.window_manager.progress_update(int(100 * fraction))
         context.workspace.status_text_set(f"RadTR: {self.what} {fraction:.0%}; ESC cancels")
         return {"RUNNING_MODAL"}
-
-    def _end(self, context):
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        context.workspace.status_text_set(None)
 
     def finished(self, context, result):
         return {"FINISHED"}

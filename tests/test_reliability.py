@@ -86,7 +86,8 @@ def test_modal_solve_that_raises_is_cleared_and_reported(addon, cornell):
 
     op.running["job"] = SimpleNamespace(advance=advance)
     modal = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append((kind, msg)),
-                            _end=lambda ctx: op.ModalSolve._end(modal, ctx))
+                            _end=lambda ctx: op.ModalSolve._end(modal, ctx),
+                            _close=lambda ctx: op.ModalSolve._close(modal, ctx))
     assert op.ModalSolve.modal(modal, context, SimpleNamespace(type="TIMER")) == {"CANCELLED"}
     assert op.running["job"] is None
     assert reports == [({"ERROR"}, reports[0][1])]

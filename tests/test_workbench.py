@@ -6,6 +6,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import ROOT
+from test_viewpoints import pixels
 
 from radtr_addon.exchange import load
 from radtr_addon.sky import dome_size
@@ -30,14 +31,6 @@ def solved(cornell):
         setattr(s, k, v)
     assert bpy.ops.radtr.solve() == {"FINISHED"}
     return bpy
-
-
-def picture(bpy, path) -> np.ndarray:
-    image = bpy.data.images.load(str(path))
-    try:
-        return np.array(image.pixels[:])
-    finally:
-        bpy.data.images.remove(image)
 
 
 def test_export_operator_writes_what_the_cli_writes(solved, tmp_path):
@@ -74,21 +67,21 @@ def test_sequence_and_watch_operators_render_what_the_cli_renders(solved, tmp_pa
     E[::7] = 5.0
     for i, scale in ((1, 1.0), (2, 3.0)):
         np.savetxt(tmp_path / f"e{i}.dat", scale * E)
-    before = picture(bpy, _render(bpy, tmp_path / "before.png"))
+    before = pixels(bpy, _render(bpy, tmp_path / "before.png"))
     assert bpy.ops.radtr.sequence(prefix=str(tmp_path / "e"), suffix=".dat", first=1, last=2,
                                   out_dir=str(tmp_path / "op"), out_prefix="shot_") == {"FINISHED"}
     assert bpy.ops.radtr.watch(file=str(tmp_path / "e2.dat"), period=0.05, polls=3, out_dir=str(tmp_path / "opw"),
                                out_prefix="look_") == {"FINISHED"}
-    np.testing.assert_array_equal(picture(bpy, _render(bpy, tmp_path / "after.png")), before)   # colours restored
+    np.testing.assert_array_equal(pixels(bpy, _render(bpy, tmp_path / "after.png")), before)   # colours restored
     cli("sequence", "cornell_box", "--prefix", str(tmp_path / "e"), "--suffix", ".dat", "--to", "2",
         "--out-dir", str(tmp_path / "cli"), "--out-prefix", "shot_", *FLAGS)
     cli("watch", "cornell_box", "--file", str(tmp_path / "e2.dat"), "--polls", "3", "--interval", "0.05",
         "--out-dir", str(tmp_path / "cliw"), "--out-prefix", "look_", *FLAGS)
     for ours, theirs in (("op/shot_0001.png", "cli/shot_0001.png"), ("op/shot_0002.png", "cli/shot_0002.png"),
                          ("opw/look_0000.png", "cliw/look_0000.png")):
-        a, b = picture(bpy, tmp_path / ours), picture(bpy, tmp_path / theirs)
+        a, b = pixels(bpy, tmp_path / ours), pixels(bpy, tmp_path / theirs)
         assert np.abs(a - b).max() < 2 / 255, ours
-    assert np.abs(picture(bpy, tmp_path / "op/shot_0002.png") - picture(bpy, tmp_path / "op/shot_0001.png")).max() > 0.1
+    assert np.abs(pixels(bpy, tmp_path / "op/shot_0002.png") - pixels(bpy, tmp_path / "op/shot_0001.png")).max() > 0.1
 
 
 def _render(bpy, path):
