@@ -27,6 +27,9 @@ class RADTR_OT_capture(bpy.types.Operator):
         path = bpy.path.abspath(self.filepath)
         try:
             if self.kind == "VIEWPORT":
+                if bpy.app.background:
+                    self.report({"ERROR"}, "RadTR: a viewport capture needs Blender's window; use Render")
+                    return {"CANCELLED"}
                 scene = context.scene
                 saved = scene.render.filepath
                 scene.render.filepath = path

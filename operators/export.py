@@ -34,7 +34,8 @@ class RADTR_OT_export(ModalTask, bpy.types.Operator):
         path = path.removesuffix(".npz").removesuffix(".mat") + SUFFIXES[self.format]
         self._path = path
         level = self.level if self.level >= 0 else None
-        return self._run_steps(context, export_steps(job, path, level, self.refine_to, job.sky))
+        return self._run_steps(context, export_steps(job, path, level, self.refine_to, job.sky,
+                                                     log=lambda line: self.report({"WARNING"}, line)))
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)

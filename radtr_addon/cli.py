@@ -36,6 +36,14 @@ def check_args(args):
     gltf = getattr(args, "gltf", None)
     if gltf and Path(gltf).suffix.lower() not in (".glb", ".gltf"):
         raise SettingsError(f"--gltf {gltf}: a glTF file ends in .glb or .gltf")
+    render = getattr(args, "render", None)
+    if render and Path(render).suffix.lower() != ".png":
+        raise SettingsError(f"--render {render}: the picture is written as PNG; name it .png")
+    if getattr(args, "camera", "") and not render:
+        raise SettingsError(f"--camera {args.camera} needs --render (the picture it is for)")
+    watched = getattr(args, "file", None)
+    if watched and not Path(watched).resolve().parent.is_dir():
+        raise SettingsError(f"--file {watched}: the folder {Path(watched).resolve().parent} does not exist")
     for flag in ("out", "render", "gltf"):
         path = getattr(args, flag, None)
         if path and not Path(path).resolve().parent.is_dir():
@@ -57,6 +65,10 @@ def cmd_solve(args) -> int:
 
     for w in open_scene(args.scene):
         print(f"RadTR warning: {w}")
+    if args.camera:
+        from .blender.render import find_camera
+
+        find_camera(bpy.context.scene, args.camera)          # named before the solve, not after it
     job = solve(bpy.context, settings_from(args), progress=_every(lambda job: print(f"RadTR: {job.readout}")))
     times = ", ".join(f"{k} {v:.2f} s" for k, v in job.stats.seconds.items())
     print(f"RadTR: stages: {times}")
@@ -181,13 +193,21 @@ def _every(show, seconds: float = 2.0):
 def cmd_sequence(args) -> int:
     import bpy
 
-    from .blender.pipeline import solve
+    from .blender.pipeline import SolveJob
     from .blender.sequence import render_sequence, watch
+    from .exchange import load_vector
 
     for w in open_scene(args.scene):
         print(f"RadTR warning: {w}")
-    job = solve(bpy.context, settings_from(args))
+    ctx = bpy.context
+    job = SolveJob(ctx.scene, ctx.evaluated_depsgraph_get(), ctx.view_layer, settings_from(args))
+    if args.command == "sequence":                 # every file checked against the patches before the solve
+        for i in range(args.first, args.last + 1):
+            load_vector(f"{args.prefix}{i}{args.suffix}", job.leaves.n)
+    job.run()
+    job.finish()
     if args.command == "watch":
+        print(f"RadTR: watching {args.file} every {args.interval:g} s (Ctrl+C stops)", flush=True)
         paths = watch(job, args.file, args.out_dir, args.polls, args.interval, out_prefix=args.out_prefix)
     else:
         paths = render_sequence(job, args.prefix, args.first, args.last, args.out_dir, args.suffix, args.out_prefix)
@@ -205,7 +225,8 @@ def cmd_bench(args) -> int:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m radtr_addon", description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("solve", help="solve a scene and write the result")
+    shown = argparse.ArgumentDefaultsHelpFormatter          # --help gives each flag's default
+    p = sub.add_parser("solve", formatter_class=shown, help="solve a scene and write the result")
     p.add_argument("scene", help=SCENE_HELP)
     p.add_argument("--out", help="write the solved scene to this .blend")
     p.add_argument("--render", help="render the solved scene to this PNG")
@@ -215,7 +236,8 @@ def main(argv=None) -> int:
                                   "_RADTR_RADIOSITY: B)")
     add_arguments(p)
     p.set_defaults(func=cmd_solve)
-    f = sub.add_parser("flashlight", help="solve, then render one PNG per flashlight pose (low-rank)")
+    f = sub.add_parser("flashlight", formatter_class=shown,
+                       help="solve, then render one PNG per flashlight pose (low-rank)")
     f.add_argument("scene", help=SCENE_HELP)
     f.add_argument("--poses", required=True,
                    help="JSON list of poses: {position, direction, angle_deg, intensity, color}, or a list of "
@@ -228,8 +250,9 @@ def main(argv=None) -> int:
     f.add_argument("--user-frame", default="", help="with --backend user: module:function called every frame")
     add_arguments(f)
     f.set_defaults(func=cmd_flashlight)
-    e = sub.add_parser("export", help="write form factors, emission, reflectance, areas, triangles (and U, V; "
-                                      "with --sky the sky matrix and its points)")
+    e = sub.add_parser("export", formatter_class=shown,
+                       help="write form factors, emission, reflectance, areas, triangles (and U, V; "
+                            "with --sky the sky matrix and its points)")
     e.add_argument("scene", help=SCENE_HELP)
     e.add_argument("--out", required=True, help="file.npz, file.mat, or a prefix for the seed's .dat files")
     e.add_argument("--level", type=int, help="also the low-rank U and V of this hierarchy level")
@@ -238,17 +261,19 @@ def main(argv=None) -> int:
                         "(the multi-level cut)")
     add_arguments(e)
     e.set_defaults(func=cmd_export)
-    q = sub.add_parser("sequence", help="solve and render emission files <prefix><i><suffix>, i = from..to")
+    q = sub.add_parser("sequence", formatter_class=shown,
+                       help="solve and render emission files <prefix><i><suffix>, i = from..to")
     q.add_argument("scene", help=SCENE_HELP)
     q.add_argument("--prefix", required=True)
     q.add_argument("--suffix", default="", help="e.g. .dat")
     q.add_argument("--from", dest="first", type=int, default=1)
     q.add_argument("--to", dest="last", type=int, required=True)
     q.add_argument("--out-dir", default="out/sequence")
-    q.add_argument("--out-prefix", default="frame_", help="PNG names: <out-prefix><i>.png")
+    q.add_argument("--out-prefix", default="frame_", help="PNG names: <out-prefix><i, 4 digits>.png")
     add_arguments(q)
     q.set_defaults(func=cmd_sequence)
-    w = sub.add_parser("watch", help="solve and render an emission file each time another program rewrites it")
+    w = sub.add_parser("watch", formatter_class=shown,
+                       help="solve and render an emission file each time another program rewrites it")
     w.add_argument("scene", help=SCENE_HELP)
     w.add_argument("--file", required=True)
     w.add_argument("--out-dir", default="out/watch")
@@ -257,7 +282,7 @@ def main(argv=None) -> int:
     w.add_argument("--interval", type=float, default=0.5, help="seconds between looks")
     add_arguments(w)
     w.set_defaults(func=cmd_sequence)
-    b = sub.add_parser("bench", help="run a benchmark and print its table")
+    b = sub.add_parser("bench", formatter_class=shown, help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")
     b.add_argument("--quick", action="store_true", help="smaller sizes, for a quick look")
     b.add_argument("--json", help="also write the results to this JSON file")

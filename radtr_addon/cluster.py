@@ -21,7 +21,7 @@ from .errors import SettingsError
 #: Blocks per worker: enough that workers finishing early take the remaining ones.
 BLOCKS_PER_WORKER = 4
 #: Seconds to wait for a scheduler (and for local workers to start).
-CONNECT_TIMEOUT = 30
+CONNECT_TIMEOUT = 10
 _CLIENTS: dict[str, object] = {}
 
 

@@ -211,7 +211,8 @@ class Solve:
             direct, culled = direct_irradiance(self.leaves, lights)
             H += direct
             if culled.max() > 0:
-                warnings.append(f"{culled.sum():.3g} W of weak light left out (culled) at patches where "
+                warnings.append(f"{culled.sum():.3g} W of weak light (of Light objects, and of the backs of "
+                                f"two-sided emitters) left out (culled) at patches where "
                                 f"a brighter light dominates")
         if sky is not None:
             H += sky_irradiance(self.leaves, sky)
@@ -335,7 +336,8 @@ class Solve:
         r = self.result
         unit = "shots" if r.method == "shooting" else "sweeps" if r.method != "direct" else "solve"
         state = ("converged" if r.converged else f"NOT converged to the tolerance {self.solver.tol:g}"
-                 + (", stopped at the iteration cap (Continue goes on)" if r.iterations >= self.solver.max_iterations
+                 + (", stopped at the iteration cap (Continue in the panel, or more --iterations, goes on)"
+                    if r.iterations >= self.solver.max_iterations
                     else ""))
         inst = f" ({self.instances:,} instances)" if self.instances else ""
         if r.method == "hierarchical":

@@ -109,10 +109,10 @@ class Settings:
                 ("max reflectance", s.max_reflectance, 0 <= s.max_reflectance <= 1, "between 0 and 1"),
                 ("exposure", s.exposure, 0 <= s.exposure < np.inf, "0 or more"),
                 ("memory budget", s.cache_mb, s.cache_mb >= 1, "at least 1 MB"),
-                ("scheduler", s.scheduler, not s.scheduler or s.method == "embree",
-                 "empty with a GPU form-factor method (Dask workers have no GPU context): use --method embree"),
                 ("scheduler", s.scheduler, not s.scheduler or s.solver != "hierarchical",
-                 "empty with the hierarchical solver (it computes its links in this process)")):
+                 "empty with the hierarchical solver (it computes its links in this process)"),
+                ("scheduler", s.scheduler, not s.scheduler or s.method == "embree",
+                 "empty with a GPU form-factor method (Dask workers have no GPU context): use --method embree")):
             if not ok:
                 raise SettingsError(f"{label} must be {need}, got {value!r}")
         for what, need in self.memory(patches).items():

@@ -36,7 +36,7 @@ def export_target(path) -> Path:
     return path
 
 
-def export_steps(solve, path, level: int | None = None, refine_to: int = 0, sky=None):
+def export_steps(solve, path, level: int | None = None, refine_to: int = 0, sky=None, log=print):
     """Write the form factors of ``solve`` (a uniform ``pipeline.Solve``), its emission,
     reflectance, areas and triangles, the low-rank U and V of hierarchy ``level`` (refined to
     ``refine_to`` clusters where the light is, several levels combined), and ``sky`` (a
@@ -50,6 +50,9 @@ def export_steps(solve, path, level: int | None = None, refine_to: int = 0, sky=
         raise SettingsError("export needs the form factors of a uniform solve; the hierarchical solver keeps none")
     if level is not None and not 0 <= level <= solve.hierarchy.levels:
         raise SettingsError(f"low-rank level {level} is not a level of the hierarchy: 0..{solve.hierarchy.levels}")
+    if level is not None and level == solve.hierarchy.levels and refine_to <= solve.leaves.n:
+        log(f"RadTR warning: low-rank level {level} is the leaf level: U is {solve.leaves.n:,} x {solve.leaves.n:,} "
+            f"dense, no smaller than F; solve with more --levels (Levels) for clusters")
     assembly = Assembly(solve.rows, solve.leaves.n)
     F = None
     share = 0.8 if level is not None else 1.0

@@ -70,8 +70,34 @@ def test_render_through_a_named_camera(cornell, tmp_path):
     assert (tmp_path / "side.png").is_file()
 
 
-def test_cli_camera_flag_names_a_missing_camera(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "radtr_addon", "solve", "cornell_box", "--max-area", "0.05",
-                          "--method", "embree", "--rays", "16", "--render", str(tmp_path / "r.png"),
-                          "--camera", "nope"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+def cli_solve(scene, *flags):
+    return subprocess.run([sys.executable, "-m", "radtr_addon", "solve", str(scene), "--max-area", "0.05",
+                           "--method", "embree", "--rays", "16", *flags], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_cli_checks_the_picture_flags_before_solving(tmp_path):
+    run = cli_solve("cornell_box", "--render", str(tmp_path / "r.png"), "--camera", "nope")
     assert run.returncode == 2 and "no camera or saved view 'nope'" in run.stderr
+    assert "patches" not in run.stdout                          # refused before the solve
+    run = cli_solve("cornell_box", "--render", str(tmp_path / "r.jpg"))
+    assert run.returncode == 2 and "the picture is written as PNG; name it .png" in run.stderr
+    run = cli_solve("cornell_box", "--camera", "camera")
+    assert run.returncode == 2 and "--camera camera needs --render" in run.stderr
+
+
+def test_cli_renders_through_a_saved_view_of_a_blend_file(cornell, tmp_path):
+    from types import SimpleNamespace
+
+    from radtr_addon.blender.viewpoints import store_view
+
+    bpy = cornell
+    cam = bpy.data.objects["camera"]
+    store_view(bpy.context.scene.radtr, SimpleNamespace(view_location=tuple(cam.matrix_world.translation),
+                                                        view_rotation=tuple(cam.matrix_world.to_quaternion()),
+                                                        view_distance=0.0), "front")
+    bpy.context.scene.render.resolution_x = bpy.context.scene.render.resolution_y = 32
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "box.blend"))
+    run = cli_solve(tmp_path / "box.blend", "--render", str(tmp_path / "front.png"), "--camera", "front")
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert (tmp_path / "front.png").is_file()

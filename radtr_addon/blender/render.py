@@ -32,22 +32,15 @@ def render_png(bl_scene, path: str, samples: int = 16, camera: str = "", animati
     flies along it)."""
     import bpy
 
-    from ..errors import SceneError
-    from .viewpoints import camera_from_view
+    from .viewpoints import SavedView, camera_from_view
 
     saved = [(p, a, getattr(_owner(bl_scene, p), a)) for p, a in _SETTINGS]
     scene_camera, temp_cam = bl_scene.camera, None
     if camera:
-        obj = bl_scene.objects.get(camera)
-        view = bl_scene.radtr.views.get(camera) if hasattr(bl_scene, "radtr") else None
-        if (obj is None or obj.type != "CAMERA") and view is None:
-            have = ", ".join(o.name for o in bl_scene.objects if o.type == "CAMERA") or "none"
-            views = ", ".join(v.name for v in bl_scene.radtr.views) if hasattr(bl_scene, "radtr") else ""
-            raise SceneError(f"no camera or saved view '{camera}' in scene '{bl_scene.name}' (cameras: {have}; "
-                             f"saved views: {views or 'none'})")
-        if obj is None or obj.type != "CAMERA":
-            obj = temp_cam = camera_from_view(bl_scene, view)
-        bl_scene.camera = obj
+        found = find_camera(bl_scene, camera)
+        if isinstance(found, SavedView):
+            found = temp_cam = camera_from_view(bl_scene, found)
+        bl_scene.camera = found
     if bl_scene.camera is None:
         temp_cam = _frame_camera(bl_scene)
     try:
@@ -74,6 +67,24 @@ def render_png(bl_scene, path: str, samples: int = 16, camera: str = "", animati
             bpy.data.objects.remove(temp_cam)
             bpy.data.cameras.remove(data)
         bl_scene.camera = scene_camera
+
+
+def find_camera(bl_scene, name: str):
+    """The camera object named ``name``, else the saved view of that name (``viewpoints``);
+    SceneError listing both when there is neither."""
+    from ..errors import SceneError
+    from .viewpoints import saved_views
+
+    obj = bl_scene.objects.get(name)
+    if obj is not None and obj.type == "CAMERA":
+        return obj
+    views = saved_views(bl_scene)
+    view = next((v for v in views if v.name == name), None)
+    if view is None:
+        have = ", ".join(o.name for o in bl_scene.objects if o.type == "CAMERA") or "none"
+        raise SceneError(f"no camera or saved view '{name}' in scene '{bl_scene.name}' (cameras: {have}; "
+                         f"saved views: {', '.join(v.name for v in views) or 'none'})")
+    return view
 
 
 def _frame_camera(bl_scene):

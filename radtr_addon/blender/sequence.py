@@ -82,7 +82,7 @@ class Watcher:
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.meshes = LiveMeshes(job.objects, job.leaves)
         self.saved = self.meshes.snapshot()
-        self.shown, self.seen, self.previous = [], None, None
+        self.shown, self.seen, self.previous, self.warned = [], None, None, None
 
     def poll(self, interval: float) -> Path | None:
         """Look once; the PNG rendered when a new version has stayed unchanged since the last look."""
@@ -96,7 +96,10 @@ class Watcher:
             try:
                 E = read_complete(self.path, self.job.leaves.n)
             except (InputFileError, OSError) as exc:
-                self.log(f"RadTR warning: {exc}; skipped, waiting for a complete file (tried again in {interval:g} s)")
+                if signature != self.warned:            # once a version, not every look
+                    self.log(f"RadTR warning: {exc}; skipped, waiting for a complete file "
+                             f"(looking again every {interval:g} s)")
+                    self.warned = signature
             else:
                 out = _show(self.job, self.meshes, E, self.out_dir / f"{self.out_prefix}{len(self.shown):04d}.png")
                 self.shown.append(out)

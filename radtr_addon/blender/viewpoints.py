@@ -7,6 +7,8 @@ what the viewport saw, so ``--camera NAME`` and Capture render a saved view.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
@@ -43,6 +45,32 @@ def recall_view(item, rv3d):
     rv3d.view_perspective = "PERSP"
     rv3d.view_location, rv3d.view_rotation = tuple(item.location), tuple(item.rotation)
     rv3d.view_distance = item.distance
+
+
+class SavedView(NamedTuple):
+    name: str
+    location: tuple
+    rotation: tuple
+    distance: float
+    lens: float
+
+
+def saved_views(bl_scene) -> list[SavedView]:
+    """The scene's saved views, also where the add-on is not registered (the command line
+    reads the .blend's raw properties; unset fields have the properties' defaults)."""
+    registered = getattr(bl_scene, "radtr", None)
+    if registered is not None:
+        raw = registered.views
+    else:                         # Blender 5 keeps add-on properties apart from custom ones
+        system = bl_scene.bl_system_properties_get() if hasattr(bl_scene, "bl_system_properties_get") else bl_scene
+        raw = ((system or {}).get("radtr") or {}).get("views") or []
+    out = []
+    for v in raw:
+        get = (lambda key, default, v=v: getattr(v, key)) if registered is not None else v.get
+        out.append(SavedView(get("name", ""), tuple(get("location", (0.0, 0.0, 0.0))),
+                             tuple(get("rotation", (1.0, 0.0, 0.0, 0.0))), float(get("distance", 10.0)),
+                             float(get("lens", 50.0))))
+    return out
 
 
 def camera_from_view(bl_scene, item):

@@ -58,7 +58,7 @@ class FormFactorSettings:
             raise SettingsError(f"hemicube resolution must be even and >= 2, got {self.resolution}")
         if self.split not in SPLIT_MODES:
             raise SettingsError(f"split mode must be one of {', '.join(SPLIT_MODES)}, got '{self.split}'")
-        if self.method == "paraboloid" and self.split in LEVELLED_SPLITS and not 1 <= self.split_level <= 64:
+        if not 1 <= self.split_level <= 64:
             raise SettingsError(f"split level must be 1 to 64, got {self.split_level}")
         if self.rays < 1:
             raise SettingsError(f"rays per row must be at least 1, got {self.rays}")
