@@ -55,7 +55,8 @@ class Settings:
                                   "(smaller: finer, slower)")
     user_solver: str = option("", "with --solver user: module:function or file.py:function (see examples/)")
     tolerance: float = option(1e-3, "residual (unshot) power / emitted power to stop at")
-    max_iterations: int = option(20_000, "most shots or sweeps (hierarchical: sweeps per round)", flag="--iterations")
+    max_iterations: int = option(100_000, "most shots or sweeps (hierarchical: sweeps per round)",
+                                 flag="--iterations")
     precision: str = option("float64", "accumulation precision", PRECISIONS)
     ambient: bool = option(False, "shooting: show unshot light as Cohen's ambient term")
     gather_rays: int = option(0, "final gather of the vertex colours with this many rays per vertex (0: patch mean)")
