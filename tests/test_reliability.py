@@ -527,9 +527,9 @@ def test_coincident_back_to_back_faces_are_named_when_form_factors_are_set_up(ot
     assert np.all(leaves.object_index[found[:, 0]] != leaves.object_index[found[:, 1]])
     ff = FormFactors(leaves, FormFactorSettings("embree", rays=16))
     assert ff.warnings == [f"{pairs} pairs of coincident back-to-back faces (two faces at the same place facing away "
-                           f"from each other: a wall modelled as two faces, or an object resting on another) in "
-                           f"'room' and 'shell': each face is lit from its front only; give the wall a thickness, "
-                           f"or make it one face, if light should pass there"]
+                           f"from each other) in 'room' and 'shell': each face is lit from its front only, as a box "
+                           f"resting on a floor or a wall between two rooms should be; if light should pass there "
+                           f"(a thin sheet), make it one face"]
     single = subdivide(doubled_box().subset(np.arange(24) < 12), 0.05, 1).leaves
     assert FormFactors(single, FormFactorSettings("embree", rays=16)).warnings == []
 

@@ -102,6 +102,5 @@ def back_to_back_warning(scene) -> str | None:
     where = "; ".join(" and ".join(f"'{n}'" for n in o) for o in objects[:5])
     more = f" (and {len(objects) - 5} more)" if len(objects) > 5 else ""
     return (f"{len(pairs):,} pairs of coincident back-to-back faces (two faces at the same place facing away from "
-            f"each other: a wall modelled as two faces, or an object resting on another) in {where}{more}: each "
-            f"face is lit from its front only; give the wall a thickness, or make it one face, if light should "
-            f"pass there")
+            f"each other) in {where}{more}: each face is lit from its front only, as a box resting on a floor or "
+            f"a wall between two rooms should be; if light should pass there (a thin sheet), make it one face")
