@@ -1,6 +1,8 @@
 """Results out through glTF: the file Blender's own exporter writes, read back with its own
 importer, carries each result vertex's radiosity B (``_RADTR_RADIOSITY``, exact) and the radiance
 RadTR shows (COLOR_0: exposure x B / pi, clipped to 1), at the same positions."""
+import json
+import struct
 import subprocess
 import sys
 
@@ -50,12 +52,18 @@ def test_gltf_carries_the_radiosity_of_every_vertex(cornell, tmp_path, exposure)
 
     bpy = cornell
     job = solve(bpy.context, Settings(max_area=0.01, method="embree", rays=64, tolerance=1e-2), log=lambda *_: None)
-    before = {o.name: (o.select_get(), o.data.color_attributes.active_color_name, len(o.data.attributes))
-              for o in job.objects}
+    def state():
+        return ({o.name: (o.select_get(), o.data.color_attributes.active_color_name, len(o.data.attributes),
+                          [m.name for m in o.data.materials]) for o in job.objects}, len(bpy.data.materials))
+
+    before = state()
     path = tmp_path / "box.glb"
     warnings = export_gltf(bpy.context.scene, job.objects, path, exposure)
-    assert before == {o.name: (o.select_get(), o.data.color_attributes.active_color_name, len(o.data.attributes))
-                      for o in job.objects}                                       # the file as it was
+    assert state() == before                                                      # the file as it was
+    header = json.loads(path.read_bytes()[20:20 + struct.unpack("<I", path.read_bytes()[12:16])[0]])
+    assert header["extensionsUsed"] == ["KHR_materials_unlit"]                     # shown as baked, no lighting
+    assert all("KHR_materials_unlit" in header["materials"][p["material"]]["extensions"]
+               for m in header["meshes"] for p in m["primitives"])
     solved = by_position(job.objects)
     assert bool(warnings) == (exposure * max(b.max() for b in solved.values()) / np.pi > 1)
     bpy.ops.wm.read_homefile(use_empty=True)
