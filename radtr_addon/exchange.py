@@ -30,6 +30,8 @@ TEXT_SUFFIXES = {"F": "_ffs.dat", "U": "_U.dat", "V": "_V.dat", "emission": "_es
                  "reflectance": "_ros.dat", "areas": "_area.dat", "triangles": "_triangulo.dat",
                  "sky": "_sky.dat", "sky_directions": "_skydir.dat", "sky_positions": "_skypos.dat",
                  "sky_solid_angles": "_skyomega.dat"}
+#: Arrays written with one dimension (the others are matrices).
+ONE_DIMENSIONAL = ("areas", "sky_solid_angles")
 #: Names a vector may have inside an .npz or .mat file, in the order they are looked for.
 VECTOR_NAMES = ("emission", "E", "B", "radiosity", "es")
 
@@ -92,7 +94,11 @@ def load(path) -> dict:
         raw = scipy.io.loadmat(path)
     except Exception as exc:
         raise InputFileError(f"{path}: cannot be read ({type(exc).__name__}: {exc})") from None
-    return {k: (v.tocsr() if sp.issparse(v) else v) for k, v in raw.items() if not k.startswith("__")}
+    out = {k: (v.tocsr() if sp.issparse(v) else v) for k, v in raw.items() if not k.startswith("__")}
+    for k in ONE_DIMENSIONAL:                   # MATLAB keeps every vector as a 1 x n matrix
+        if k in out:
+            out[k] = out[k].ravel()
+    return out
 
 
 def load_text(prefix) -> dict:
@@ -112,7 +118,7 @@ def load_text(prefix) -> dict:
             out[name] = sp.csr_matrix((a[:, 2], (a[:, 0].astype(int) - 1, a[:, 1].astype(int) - 1)),
                                       shape=(rows, cols))
         else:
-            out[name] = a[:, 0] if name in ("areas", "sky_solid_angles") else a
+            out[name] = a[:, 0] if name in ONE_DIMENSIONAL else a
     return out
 
 

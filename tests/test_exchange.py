@@ -30,7 +30,7 @@ def arrays():
 def same(a, b):
     if sp.issparse(a):
         return sp.issparse(b) and a.shape == b.shape and np.array_equal(a.toarray(), b.toarray())
-    return np.array_equal(np.asarray(a), np.asarray(b).reshape(np.shape(a)))
+    return np.shape(a) == np.shape(b) and np.array_equal(np.asarray(a), np.asarray(b))
 
 
 @pytest.mark.parametrize("name", ["scene.npz", "scene.mat", "scene"])
