@@ -230,6 +230,9 @@ class Solve:
         models = {"uniform": uniform_sky, "cie": cie_overcast}
         s.validate(self.leaves.n)
         self.sky = sky_factors(self.leaves, *s.sky_steps, s.sky_resolution, s.scheduler)
+        if self.sky.S.nnz == 0:
+            self._warn([f"the sky ({s.sky}) reaches no patch: no front face is seen from any of its "
+                        f"{len(self.sky.directions):,} dome points (a closed scene, or faces turned away)"])
         return self.sky.irradiance(models[s.sky](self.sky, s.sky_radiance))
 
     @contextmanager

@@ -102,3 +102,22 @@ def test_eta_extrapolates_the_residual_fall_to_the_tolerance():
     assert f"about {2 * np.log(1000) - 4:,.0f} s left" in s.readout
     s._trace = [(t, 0.5) for t in (1.0, 2.0, 3.0)]             # no fall: no estimate
     assert s.eta is None
+
+
+def test_a_sky_that_reaches_nothing_is_said():
+    """A closed box lit from inside: the research sky sees only back faces; the solve says so."""
+    from geometry import cube
+
+    from radtr_addon.pipeline import SceneInput, Solve
+    from radtr_addon.scene import PatchScene
+    from radtr_addon.settings import Settings
+
+    s = Solve(SceneInput(cube()), Settings(method="embree", rays=16, sky="uniform", sky_step=45, sky_resolution=32),
+              log=lambda *_: None)
+    assert s.sky.S.nnz == 0
+    assert any("the sky (uniform) reaches no patch" in w for w in s.stats.warnings)
+    box = cube()
+    outside = PatchScene(box.vertices, box.triangles[:, ::-1], 0.5, 1.0, 0, 0)      # the same box, faces out
+    s = Solve(SceneInput(outside), Settings(method="embree", rays=16, sky="uniform", sky_step=45,
+                                            sky_resolution=32), log=lambda *_: None)
+    assert s.sky.S.nnz > 0 and not any("reaches no patch" in w for w in s.stats.warnings)
