@@ -9,6 +9,7 @@ import hashlib
 import numpy as np
 
 from ..lowrank.flashlight import Scenario, blend
+from .named import add_named
 
 
 def patches_key(leaves) -> str:
@@ -21,12 +22,7 @@ def patches_key(leaves) -> str:
 def store(settings, job, name: str):
     """A new scenario item holding ``job``'s solved B under ``name``, at weight 0 (while every
     weight is 0 the meshes show the last solve)."""
-    taken = {item.name for item in settings.scenarios}
-    unique, k = name, 2
-    while unique in taken:                      # weights are set by name: keep names apart
-        unique, k = f"{name} {k}", k + 1
-    item = settings.scenarios.add()
-    item.name = unique
+    item = add_named(settings.scenarios, name)
     item["B"] = np.asarray(job.result.B, dtype=np.float32).ravel()
     item["key"] = patches_key(job.leaves)
     return item

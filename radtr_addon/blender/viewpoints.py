@@ -11,6 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .named import add_named
+
 
 def _quat_matrix(q) -> np.ndarray:
     """3 x 3 rotation of the unit quaternion (w, x, y, z)."""
@@ -29,12 +31,7 @@ def eye_axes(location, rotation, distance) -> tuple[np.ndarray, np.ndarray, np.n
 
 def store_view(settings, rv3d, name: str, lens: float = 50.0):
     """A new saved view (unique name) holding the viewport state ``rv3d`` and its ``lens`` (mm)."""
-    taken = {v.name for v in settings.views}
-    unique, k = name, 2
-    while unique in taken:
-        unique, k = f"{name} {k}", k + 1
-    item = settings.views.add()
-    item.name = unique
+    item = add_named(settings.views, name)
     item.location, item.rotation = tuple(rv3d.view_location), tuple(rv3d.view_rotation)
     item.distance, item.lens = float(rv3d.view_distance), lens
     return item
