@@ -140,3 +140,41 @@ class ModalTask(_TimerModal):
 
     def finished(self, context, result):
         return {"FINISHED"}
+
+
+class ClickPatches:
+    """A modal operator on the last solve's patches in a 3D view: each left click calls
+    ``clicked(context, origin, direction)`` with the view ray (True ends it); Esc or right
+    click ends it, an error ends it with the reason; the header shows ``hint`` meanwhile."""
+
+    hint = "click a patch"
+
+    @classmethod
+    def poll(cls, context):
+        return running["last"] is not None and context.area is not None and context.area.type == "VIEW_3D"
+
+    def invoke(self, context, event):
+        self.start(context)
+        context.window_manager.modal_handler_add(self)
+        context.area.header_text_set(f"RadTR: {self.hint}; Esc or right click ends")
+        return {"RUNNING_MODAL"}
+
+    def start(self, context):
+        """Set up before the first click."""
+
+    def modal(self, context, event):
+        if event.type in ("ESC", "RIGHTMOUSE"):
+            context.area.header_text_set(None)
+            return {"FINISHED"}
+        if event.type != "LEFTMOUSE" or event.value != "PRESS":
+            return {"PASS_THROUGH"}
+        try:
+            done = self.clicked(context, *mouse_ray(context, event))
+        except Exception as exc:                # the meshes keep the last light shown
+            context.area.header_text_set(None)
+            self.report({"ERROR"}, user_message(exc))
+            return {"CANCELLED"}
+        if done:
+            context.area.header_text_set(None)
+            return {"FINISHED"}
+        return {"RUNNING_MODAL"}

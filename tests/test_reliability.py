@@ -584,3 +584,26 @@ def test_user_solver_that_never_returns_can_be_cancelled(cornell, tmp_path):
     assert state(bpy) == before
     solver.function.__globals__["gate"].set()              # let the abandoned thread end
     assert solver._worker.wait(5)
+
+
+def test_click_operators_end_cleanly_on_esc_and_on_an_error(addon, monkeypatch):
+    """Toggle Patch Emission and Pick Patch View share ``ClickPatches``: Esc ends with the header
+    cleared; a click whose work raises ends with the reason reported and the header cleared."""
+    import radtr.operators.session as op
+
+    headers, reports = [], []
+    context = SimpleNamespace(area=SimpleNamespace(header_text_set=headers.append))
+    monkeypatch.setattr(op, "mouse_ray", lambda ctx, ev: ((0, 0, 0), (0, 0, -1)))
+
+    def fails(ctx, origin, direction):
+        raise ZeroDivisionError("division by zero")
+
+    clicker = SimpleNamespace(clicked=fails, report=lambda kind, msg: reports.append((kind, msg)))
+    press = SimpleNamespace(type="LEFTMOUSE", value="PRESS")
+    assert op.ClickPatches.modal(clicker, context, SimpleNamespace(type="MOUSEMOVE", value="")) == {"PASS_THROUGH"}
+    assert op.ClickPatches.modal(clicker, context, press) == {"CANCELLED"}
+    assert headers == [None] and reports[0][0] == {"ERROR"} and "ZeroDivisionError" in reports[0][1]
+    clicker.clicked = lambda ctx, origin, direction: False
+    assert op.ClickPatches.modal(clicker, context, press) == {"RUNNING_MODAL"}
+    assert op.ClickPatches.modal(clicker, context, SimpleNamespace(type="ESC", value="PRESS")) == {"FINISHED"}
+    assert headers == [None, None]
