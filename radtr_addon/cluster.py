@@ -64,16 +64,17 @@ def close(spec: str):
             cluster.close()
 
 
-#: Per worker process: the ray caster of each scattered scene (by object id) and settings.
+#: Per worker process: the ray caster of the scattered scene (by its key, a hash of its
+#: content: an object id could be reused by the next scene) and settings.
 _CASTERS: dict[tuple, object] = {}
 
 
-def _rows_of_block(scene, settings, ids):
+def _rows_of_block(scene, scene_key, settings, ids):
     """On a worker: the rows of ``ids`` and the seconds they took."""
     from .formfactors.methods import make_method
 
     t0 = time.perf_counter()
-    key = (id(scene), settings.label(), settings.seed, settings.origins)
+    key = (scene_key, settings.label(), settings.seed, settings.origins)
     if key not in _CASTERS:
         _CASTERS.clear()                      # one scene at a time per worker
         _CASTERS[key] = make_method(scene, settings)
@@ -102,7 +103,8 @@ class ClusterRows:
         ids = np.asarray(ids, dtype=np.int64)
         blocks = [b for b in np.array_split(ids, min(len(ids), BLOCKS_PER_WORKER * self.workers)) if len(b)]
         t0 = time.perf_counter()
-        futures = self.client.map(_rows_of_block, [self.scene] * len(blocks), [self.settings] * len(blocks),
+        futures = self.client.map(_rows_of_block, [self.scene] * len(blocks), [self.scene.key] * len(blocks),
+                                  [self.settings] * len(blocks),
                                   blocks, pure=False)
         out = []
         for rows, seconds in self.client.gather(futures):
@@ -112,12 +114,12 @@ class ClusterRows:
         return out
 
 
-def _dome_block(scene, directions, resolution):
+def _dome_block(scene, scene_key, directions, resolution):
     """On a worker: ``sky.dome_rows`` of a block of dome points, with the worker's caster."""
     from .formfactors.raycast import EmbreeRays
     from .sky import dome_rows
 
-    key = (id(scene), "sky")
+    key = (scene_key, "sky")
     if key not in _CASTERS:
         _CASTERS.clear()
         _CASTERS[key] = EmbreeRays(scene, 1)
@@ -134,7 +136,8 @@ def dome_row_steps(spec: str, scene, directions, resolution: int):
     blocks = [b for b in np.array_split(np.arange(len(directions)), min(len(directions), BLOCKS_PER_WORKER * workers))
               if len(b)]
     remote = client.scatter(scene, broadcast=True)
-    futures = [client.submit(_dome_block, remote, directions[b], resolution, pure=False) for b in blocks]
+    futures = [client.submit(_dome_block, remote, remote.key, directions[b], resolution, pure=False)
+               for b in blocks]
     order = {f.key: k for k, f in enumerate(futures)}
     done: dict[int, list] = {}
     for future in as_completed(futures):

@@ -95,3 +95,20 @@ def test_sky_form_factors_on_the_cluster_are_the_same_matrix():
     there = sky_factors(leaves, 30, 30, 64, scheduler=SPEC)
     assert here.S.nnz > 0 and (here.S != there.S).nnz == 0
     np.testing.assert_array_equal(here.directions, there.directions)
+
+
+def test_a_second_scene_on_the_same_cluster_gets_its_own_rows():
+    """Workers keep a caster per scene: the next scene (another shape) must not be traced
+    against the last one's."""
+    import gc
+
+    settings = FormFactorSettings("embree", rays=64)
+    client = connect(SPEC)
+    first = subdivide(cube(), 1 / 50, 1).leaves
+    ClusterRows(client, first, settings)(np.arange(first.n))
+    gc.collect()
+    box = cube()
+    tall = PatchScene(box.vertices * [1.0, 1.0, 3.0], box.triangles, 0.5, 1.0, 0, 0)
+    second = subdivide(tall, 3 / 50, 1).leaves
+    got = ClusterRows(client, second, settings)(np.arange(second.n))
+    assert rows_equal(got, FormFactors(second, settings).rows(np.arange(second.n)))
