@@ -73,12 +73,14 @@ def sky_factors(scene, alpha: float = 10.0, beta: float = 10.0, resolution: int 
     return run(sky_factor_steps(scene, alpha, beta, resolution, scheduler))
 
 
-def dome_rows(scene, directions: np.ndarray, resolution: int, caster=None) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(patch ids, S values) seen from each dome point in ``directions`` (k, 3)."""
+def dome_rows(scene, directions: np.ndarray, resolution: int, caster=None,
+              sphere=None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(patch ids, S values) seen from each dome point in ``directions`` (k, 3); ``sphere``:
+    the scene's ``bounding_sphere`` when the caller has it."""
     from .formfactors.raycast import EmbreeRays
 
     caster = caster or EmbreeRays(scene, 1)
-    centre, radius = bounding_sphere(scene.vertices)
+    centre, radius = sphere or bounding_sphere(scene.vertices)
     pixel_area = (2 * radius / resolution) ** 2
     out = []
     for d in directions:
@@ -96,6 +98,7 @@ def sky_factor_steps(scene, alpha: float = 10.0, beta: float = 10.0, resolution:
     from .formfactors.raycast import EmbreeRays
 
     directions, omega = dome(alpha, beta)
+    centre, radius = bounding_sphere(scene.vertices)
     if scheduler:
         from .cluster import dome_row_steps
 
@@ -103,13 +106,12 @@ def sky_factor_steps(scene, alpha: float = 10.0, beta: float = 10.0, resolution:
     else:
         caster, per_point = EmbreeRays(scene, 1), []
         for p, d in enumerate(directions):
-            per_point += dome_rows(scene, d[None], resolution, caster)
+            per_point += dome_rows(scene, d[None], resolution, caster, (centre, radius))
             yield (p + 1) / len(directions)
     rows = np.repeat(np.arange(len(directions)), [len(ids) for ids, _ in per_point])
     cols = np.concatenate([ids for ids, _ in per_point])
     vals = np.concatenate([v for _, v in per_point])
     S = sp.csr_matrix((vals, (rows, cols)), shape=(len(directions), scene.n))
-    centre, radius = bounding_sphere(scene.vertices)
     return SkyFactors(directions, centre + 2 * radius * directions, omega, S)
 
 
