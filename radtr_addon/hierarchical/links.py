@@ -8,18 +8,24 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
   fraction of ``VISIBILITY_RAYS`` shadow rays from x to stratified, seeded points on S that
   arrive. Exact for the source's extent however near it is, so near-field links need refine
   only for how the light varies over R.
-- with a cluster at either end: point to point between the ends' centres along w, the source
+- with a cluster at either end: between the ends' centres along w, at distance d, the source
   sending its projected area A_proj(w) times its radiosity, the receiver taking cos per
-  element (a cluster receiver keeps the light by direction and hands it down, ``solve``);
-  visibility by rays between random points of the two ends' triangles, weighted by how
-  much those triangles face each other.
+  element (a cluster receiver hands the light to its triangles, ``solve``), through the
+  point-to-disc kernel 1 / (pi d^2 + A_proj(w)): a point's form factor to a disc of that
+  area facing it, where 1 / (pi d^2) would count a source of the receiver's size at twice its
+  radius 25% too bright (and such links, each within epsilon, are many: a closed room lost
+  or gained 3-4% of its light through them); visibility by rays between random points of
+  the two ends' triangles, weighted by how much those triangles face each other.
 
 Error estimate of a link (W/m^2 at R, worst channel), against epsilon x the scene's mean
 emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the miss of the
 quadratic at R's check points (or a quarter of F's spread over R if more, or the unoccluded
 F where any shadow ray was blocked: a shadow boundary may cross R); cluster links rho_R B_S
 (F x the ends' angular size seen across the link + the unoccluded F where any ray was
-blocked). A link over the bound is replaced by the links of the children of its larger end;
+blocked). A link from a source with a surface close in front of part of it that is seen
+only in part (``vis`` below 1) is refined at the source where the spread of its B matters
+(``solve``).
+A link over the bound is replaced by the links of the children of its larger end;
 a link whose ends cannot split further is kept.
 """
 from __future__ import annotations
@@ -59,14 +65,15 @@ class Links:
     occluded: np.ndarray   # unoccluded mean transfer where visibility is not complete, else 0
     d: np.ndarray          # (L, 3) table directions around the direction of travel S -> R
     dw: np.ndarray         # (L, 3) their weights (``nodes.direction_weights``)
+    vis: np.ndarray        # visible share of the transfer (F-weighted over R's points; cluster links: V)
 
-    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw")
+    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw", "vis")
 
     @classmethod
     def empty(cls) -> "Links":
         z = np.zeros(0)
         return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z, np.zeros((0, 3), np.int64),
-                   np.zeros((0, 3)))
+                   np.zeros((0, 3)), z)
 
     @property
     def mean(self) -> np.ndarray:
@@ -185,7 +192,8 @@ class Evaluator:
         # a shadow boundary may cross R (or every ray was blocked and the samples missed where
         # S shows): the unoccluded F bounds the light at stake
         occluded = np.where(((V < 1) & (F0 > 0)).any(axis=1), F0[:, :6] @ quadratic.MEAN, 0.0)
-        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r))
+        vis = F.sum(axis=1) / np.maximum(F0.sum(axis=1), 1e-300)
+        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r), vis)
         return links.take(F0.max(axis=1) > 0)
 
     def _visible_from_points(self, x: np.ndarray, n_r: np.ndarray, tri_s: np.ndarray, n_s: np.ndarray,
@@ -237,11 +245,20 @@ class Evaluator:
         far = (dist > reach) & clear
         s, r, w, dist, geo, far, reach = (a[~behind] for a in (s, r, w, dist, geo, far, reach))
         V = self._visible_between(s, r)
-        free = np.where(far, geo / (np.pi * np.maximum(dist ** 2, 1e-300)), 0.0)
+        d, dw = direction_weights(w)
+        free = np.where(far, geo / (np.pi * np.maximum(dist ** 2, 1e-300) + self._shown_area(s, w, d, dw)), 0.0)
         spread = np.where(far, reach / np.maximum(dist, 1e-300) + DIRECTION_ERROR, np.inf)   # near or across: refine
         links = Links(s, r, np.repeat((V * free)[:, None], 6, axis=1), spread, np.where(V < 1, free, 0.0),
-                      *direction_weights(w))
+                      d, dw, V)
         return links
+
+    def _shown_area(self, s: np.ndarray, w: np.ndarray, d: np.ndarray, dw: np.ndarray) -> np.ndarray:
+        """The area each source shows along w (A max(0, n.w); a cluster's read from its table)."""
+        nd = self.nodes
+        out = nd.area[s] * np.maximum(np.einsum("ij,ij->i", nd.normal[s], w), 0.0)
+        cs = np.flatnonzero(nd.cluster[s])
+        out[cs] = np.einsum("cj,cj->c", dw[cs], nd.proj[nd.cluster_row[s[cs]][:, None], d[cs]])
+        return out
 
     def _points_on(self, nodes_: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
         """m random points (L, m, 3) on each node's triangles, chosen by area, and their normals."""
