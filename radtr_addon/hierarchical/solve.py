@@ -37,6 +37,10 @@ MAX_LINKS = 20_000_000
 #: Clusters of at most this many input triangles send and take light by each triangle's own
 #: cosine to a link's direction (``ClusterMaps``); larger ones by the direction table.
 EXACT_CLUSTER = 256
+#: Fraction of the way from a result vertex to its leaves' centroids where emitters' light is taken.
+CORNER_INSET = 0.01
+#: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
+CORNER_RAYS = 16
 #: Share of epsilon that a partly seen source's spread may bring its link (``_leaks``).
 LEAK_SHARE = 0.1
 
@@ -551,6 +555,42 @@ class HierarchicalRadiosity:
         H = np.einsum("mi,mic->mc", quadratic.basis(lam), self.H6[row])
         return nd.E[leaf] + nd.rho[leaf] * H
 
+    def _emission_gather(self) -> np.ndarray:
+        """H6 (leaves, 6, 3) of the emitters' own light alone, over the same links (the part
+        of H6 that ``_emitters_at`` gives exactly at the result's corners)."""
+        nd, leaves = self.nodes, self.leaf_ids
+        saved = (self.Bn, self.Bopen, self.Bgap, self.Brange, self.table)
+        self.Bn, self.Bopen, self.Bgap, self.Brange = (a.copy() for a in saved[:4])
+        try:
+            self._pull(leaves, self._ancestors(leaves), self.scene.emission[nd.root[leaves]],
+                       self.contacts.gap_share(leaves))
+            return self._gather(leaves, self._push_plan())
+        finally:
+            self.Bn, self.Bopen, self.Bgap, self.Brange, self.table = saved
+
+    def _emitters_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
+                     emitters: np.ndarray) -> np.ndarray:
+        """The emitting triangles' light (k x 3, 3) at the corners of the result triangles
+        ``tris`` (k, 3 vertex ids; P their points) of leaves with corners ``T`` facing
+        ``normals``: the closed form times shadow rays (``lights.irradiance_at``) at each
+        vertex, once per side of a crease, ``CORNER_INSET`` of the way to its leaves'
+        centroids (a vertex on a contact line takes the light of its own side). Direct light
+        changes fastest where a lamp is near (a wall under it, the ceiling over its back); a
+        leaf's quadratic through six nodes has it only to epsilon there."""
+        from ..lights import Light, irradiance_at
+
+        sc = self.scene
+        lights = [Light.polygon_light(f"triangle {t}", sc.vertices[sc.triangles[t]], sc.emission[t]) for t in emitters]
+        n = np.repeat(normals, 3, axis=0)
+        key = np.column_stack([tris.reshape(-1), np.round(n * 1e6)]).astype(np.int64)
+        _, first, back = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        back = back.reshape(-1)
+        count = np.bincount(back)
+        toward = np.stack([np.bincount(back, weights=c) for c in np.repeat(T.mean(axis=1), 3, axis=0).T], 1)
+        p = P.reshape(-1, 3)[first]
+        p = p + CORNER_INSET * (toward / count[:, None] - p) + self.caster.epsilon * n[first]
+        return irradiance_at(p, n[first], lights, self.caster, samples=CORNER_RAYS, cull=0.0)[0][back]
+
     def resume(self, more_rounds: int):
         """Allow ``more_rounds`` refine-solve rounds after the cap."""
         self.settings.max_rounds += more_rounds
@@ -603,8 +643,14 @@ class HierarchicalRadiosity:
             uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e)[:, None],
                                  np.einsum("kic,kpc->kpi", e, P - T[:, None, 0])[..., None])[..., 0]
             bary = np.concatenate([1 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)      # (k, 3, 3)
+            H6 = self.H6[at]
+            emitters = np.flatnonzero(sc.emission.max(axis=1) > 0)
+            if len(emitters):
+                H6 = H6 - self._emission_gather()[at]
             H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
-                                     self.H6[at]), 0.0)                   # a quadratic may dip below 0
+                                     H6), 0.0)                            # a quadratic may dip below 0
+            if len(emitters):
+                H = H + self._emitters_at(tris, P, T, nd.normal[leaf], emitters).reshape(H.shape)
             if nd.external is not None:
                 # the outside light at each corner: about a small triangle 1% of the way in
                 small = (P[:, :, None] + 0.01 * (T[:, None] - P[:, :, None])).reshape(-1, 3, 3)
