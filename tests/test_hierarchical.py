@@ -399,9 +399,10 @@ def closed_box(lo, hi, inward):
 def test_a_lamp_in_a_furnished_room_delivers_all_its_light():
     """A closed grey room of tiled walls with boxes in it (so links between clusters carry
     light): the light that leaves the surfaces lands on them (what escapes, leaving minus
-    received, is under 5% of the emitted: 3.1% at Quality 0.1, 4.4% at 0.03, a loss still to
-    find). Clusters send by a table of 42 directions; read at the nearest one, a lamp seen
-    edge-on from it sent nothing along links near it (escaped 11%)."""
+    received, is under 5% of the emitted: 1.0% at Quality 0.1, 2.2% at 0.03; 3.1% and 4.4%
+    before cluster links took their triangles' own cosines and the point-to-disc kernel).
+    Read from the direction table at the nearest direction, a lamp seen edge-on from it sent
+    nothing along links near it (escaped 11%)."""
     room = [q for a, u, v in closed_box((0, 0, 0), (5, 4, 2.7), inward=True) for q in tiled(a, u, v, 3)]
     blocks = [((1, 3.4, 0), (2, 3.9, 2)), ((2.6, 3.1, 0), (4.4, 3.95, 0.42)), ((3.5, 2.2, 0), (4.3, 2.7, 0.4))]
     boxes = [q for lo, hi in blocks for a, u, v in closed_box(lo, hi, inward=False) for q in tiled(a, u, v, 2)]
@@ -430,8 +431,9 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
     """The bundled furnished room at Quality 0.1 (gaps, contacts, a lamp 1 cm under the
     ceiling, sun and sky through a window) against Cycles baked at the written vertices
     (64 samples, emitters left out), as a user would compare: per-vertex RMS error of the
-    reflected radiance within 5%; every object's mean within 9% (the aim is 3%: the east
-    and west walls and the sofa are 4-8% bright at Quality 0.1 against 256-sample bakes)."""
+    reflected radiance within 5%; every object's mean within 9% (the aim is 3%: against
+    128-sample bakes the cabinet and the east wall are 6% dark at Quality 0.1, the rest
+    within 3.5%)."""
     from radtr_addon.bench.adaptive import ResultVertices, solve_scene, worst_object
     from radtr_addon.bench.solvers import cycles_bakes, rel_rms
 
