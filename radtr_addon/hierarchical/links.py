@@ -24,9 +24,8 @@ F where any shadow ray was blocked: a shadow boundary may cross R); cluster link
 (F x the ends' angular size seen across the link + the unoccluded F where any ray was
 blocked). A link from a source with a surface close in front of part of it that is seen
 only in part (``vis`` below 1) is refined at the source where the spread of its B matters
-(``solve``).
-A link over the bound is replaced by the links of the children of its larger end;
-a link whose ends cannot split further is kept.
+(``solve``). A link over the bound is replaced by the links of the children of its larger
+end; a link whose ends cannot split further is kept.
 """
 from __future__ import annotations
 
@@ -298,13 +297,16 @@ class Evaluator:
         return np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 0.0)
 
 
+def ranges(first: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(position, index) pairs for the index ranges first[i] .. first[i] + count[i] - 1."""
+    pos = np.repeat(np.arange(len(first)), count)
+    offset = np.arange(len(pos)) - np.repeat(np.cumsum(count) - count, count)
+    return pos, np.repeat(first, count) + offset
+
+
 def children(nodes: Nodes, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(parent position, child id) pairs for nodes ``n`` that have children."""
-    count = nodes.n_children[n]
-    pos = np.repeat(np.arange(len(n)), count)
-    first = np.repeat(nodes.first_child[n], count)
-    offset = np.arange(len(pos)) - np.repeat(np.cumsum(count) - count, count)
-    return pos, first + offset
+    return ranges(nodes.first_child[n], nodes.n_children[n])
 
 
 def expand(nodes: Nodes, src: np.ndarray, rcv: np.ndarray, split_src: np.ndarray):

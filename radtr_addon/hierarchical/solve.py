@@ -29,7 +29,7 @@ from ..scene import PatchScene
 from ..solvers.result import SolveResult
 from . import quadratic
 from .contacts import Proximity
-from .links import Evaluator, Links, direction_cosines, expand
+from .links import Evaluator, Links, direction_cosines, expand, ranges
 from .nodes import DIRECTIONS, Nodes
 
 #: Links held at most (about 100 bytes each), refused beyond with advice.
@@ -83,11 +83,10 @@ class ClusterMaps:
 
         def members(ends):
             links = np.flatnonzero(nodes.cluster[ends])           # clusters are the first nodes: in span
-            links = links[span[ends[links], 1] - span[ends[links], 0] <= EXACT_CLUSTER]
-            count = span[ends[links], 1] - span[ends[links], 0]
-            pos = np.repeat(np.arange(len(links)), count)
-            at = np.repeat(span[ends[links], 0], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count,
-                                                                                           count)
+            lo, hi = span[ends[links]].T
+            small = hi - lo <= EXACT_CLUSTER
+            links = links[small]
+            pos, at = ranges(lo[small], (hi - lo)[small])
             t = nodes.order[at]
             return links, pos, t, np.einsum("ij,ij->i", sc.normals[t], w[links][pos])
 
