@@ -5,10 +5,18 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 PY=${PYTHON:-$(command -v python3.11 || command -v python3)}
-if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import bpy, scipy, embreex, pyopencl, pytest, matplotlib, distributed" 2>/dev/null; then
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import bpy, scipy, embreex, numba, pyopencl, pytest, matplotlib, distributed" 2>/dev/null; then
   "$PY" -m venv .venv
   .venv/bin/python -m pip install -q --upgrade pip
   .venv/bin/python -m pip install -q -r requirements.txt
+  # PoCL builds for the CPU its LLVM names; where it cannot, Intel's CPU runtime is the OpenCL
+  # device (an ICD in the environment's own vendors folder, which the back-ends read).
+  if ! .venv/bin/python -m radtr_addon backends; then
+    echo "dev.sh: PoCL cannot build here; installing Intel's CPU runtime for OpenCL" >&2
+    .venv/bin/python -m pip install -q -r requirements-opencl-cpu.txt
+    mkdir -p .venv/etc/OpenCL/vendors
+    echo "$PWD/.venv/lib/libintelocl.so" > .venv/etc/OpenCL/vendors/intel-cpu.icd
+  fi
 fi
 case "${1:-}" in
   solve)

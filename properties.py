@@ -11,6 +11,7 @@ from bpy.props import (
     StringProperty,
 )
 
+from .radtr_addon.lowrank.backends import BACKENDS, DEFAULT_BACKEND
 from .radtr_addon.settings import Settings
 
 _D = Settings()
@@ -124,12 +125,9 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         description="Split the level's clusters that carry the most light until there are this many "
                     "(several levels combined: more exact at the same size); 0 keeps the level as it is")
     lowrank_backend: EnumProperty(
-        name="Back-End", default="numpy",
-        items=[("numpy", "NumPy", "BLAS product on the CPU"),
-               ("opencl", "OpenCL", "PyOpenCL: a GPU where present, PoCL on the CPU otherwise"),
-               ("opencl-int8", "OpenCL 8-bit", "OpenCL reading U as 8-bit integers with a scale per column: "
-                "a quarter of the bytes, about 0.3% error"),
-               ("user", "User", "Your own function every frame: f(E=, U=, V=, rho=) -> B")])
+        name="Back-End", default=DEFAULT_BACKEND,
+        items=[(name, cls.label, cls.description) for name, cls in BACKENDS.items()]
+        + [("user", "User", "Your own function every frame: f(E=, U=, V=, rho=) -> B")])
     lowrank_user: StringProperty(
         name="Frame Function", default="",
         description="module:function or file.py:function the User back-end calls every frame")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .blender.scenes import open_scene
 from .errors import RadTRError, SettingsError, user_message
+from .lowrank.backends import BACKENDS, DEFAULT_BACKEND
 from .settings import add_arguments
 
 SCENE_HELP = ".blend, .obj, .ply, .stl, .gltf, .glb, .fbx, .usd(a/c/z), .abc or a bundled scene name"
@@ -216,6 +217,19 @@ def cmd_sequence(args) -> int:
     return 0
 
 
+def cmd_backends(args) -> int:
+    """Each low-rank back-end and whether it runs here (the OpenCL ones: on which device, or
+    why not); 1 when one cannot run."""
+    from .lowrank.backends import opencl_device, unavailable
+
+    for name, cls in BACKENDS.items():
+        reason = unavailable(name)
+        device = opencl_device(cls.source)[0] if reason is None and hasattr(cls, "source") else None
+        where = f" on {device.platform.name} {device.name.strip()}" if device is not None else ""
+        print(f"{name}: " + (f"unavailable: {reason}" if reason else f"available{where}"))
+    return int(any(unavailable(name) for name in BACKENDS))
+
+
 def cmd_bench(args) -> int:
     from .bench import run_benchmark
 
@@ -246,7 +260,9 @@ def main(argv=None) -> int:
     f.add_argument("--level", type=int, default=1, help="hierarchy level of the low-rank clusters")
     f.add_argument("--refine-to", type=int, default=0,
                    help="refine the level's clusters where the light is until there are this many")
-    f.add_argument("--backend", default="numpy", help="low-rank back-end: numpy, opencl, opencl-int8 (8-bit U) or user")
+    f.add_argument("--backend", default=DEFAULT_BACKEND,
+                   help=f"low-rank back-end: {', '.join(BACKENDS)} (-int8: 8-bit U) or user; "
+                        "`backends` says which run here")
     f.add_argument("--user-frame", default="", help="with --backend user: module:function called every frame")
     add_arguments(f)
     f.set_defaults(func=cmd_flashlight)
@@ -282,6 +298,8 @@ def main(argv=None) -> int:
     w.add_argument("--interval", type=float, default=0.5, help="seconds between looks")
     add_arguments(w)
     w.set_defaults(func=cmd_sequence)
+    k = sub.add_parser("backends", help="list the low-rank back-ends and whether each runs on this machine")
+    k.set_defaults(func=cmd_backends)
     b = sub.add_parser("bench", formatter_class=shown, help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")
     b.add_argument("--quick", action="store_true", help="smaller sizes, for a quick look")

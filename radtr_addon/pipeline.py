@@ -346,7 +346,7 @@ class Solve:
         if r.method == "hierarchical":
             inst += f" ({self.adaptive.links:,} links, {len(self.adaptive.rounds)} rounds)"
         return (f"{self.stats.patches:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
-                f"{state}; energy balance error {r.balance_error():.1e}")
+                f"{state}; {r.books()}; energy balance error {r.balance_error():.1e}")
 
 
 def solve(scene_input: SceneInput, settings: Settings, log=print, progress=None) -> Solve:

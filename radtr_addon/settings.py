@@ -3,7 +3,8 @@
 Each field carries its default, its choices and its help; the command line builds its flags
 from them (``cli``), the Blender properties are checked against them (``tests/test_settings``)
 and copied field by field (``properties.to_settings``). Defaults of the form-factor knobs are
-``FormFactorSettings``'s own, so a solve, a bench and a form-factor call agree.
+``FormFactorSettings``'s own and Quality is ``HierarchicalSettings``'s epsilon, so a solve, a
+bench and an engine call agree.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import numpy as np
 
 from .errors import SettingsError
 from .formfactors.methods import METHODS, SPLIT_MODES, FormFactorSettings
+from .hierarchical import HierarchicalSettings
 from .solvers import ALL_SOLVERS
 
 #: Default patch count used to pick ``max_area`` when it is 0 (auto).
@@ -29,6 +31,7 @@ PRECISIONS = ("float64", "float32")
 RESULT_MODES = ("COPY", "REPLACE")
 
 _FF = FormFactorSettings()
+_HR = HierarchicalSettings()
 
 
 def option(default, help: str, choices: tuple | None = None, flag: str | None = None):
@@ -51,7 +54,7 @@ class Settings:
     rays: int = option(_FF.rays, "embree rays per patch")
     solver: str = option("shooting", "radiosity solver (hierarchical: adaptive patches and links, see --quality)",
                          ALL_SOLVERS)
-    quality: float = option(0.03, "hierarchical: error bound of a link / mean emitted exitance "
+    quality: float = option(_HR.epsilon, "hierarchical: error bound of a link / mean emitted exitance "
                                   "(smaller: finer, slower)")
     user_solver: str = option("", "with --solver user: module:function or file.py:function (see examples/)")
     tolerance: float = option(1e-3, "residual (unshot) power / emitted power to stop at")

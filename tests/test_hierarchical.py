@@ -75,7 +75,7 @@ def tiled_box(m):
     return s
 
 
-def test_white_furnace_of_tiled_faces_at_the_default_quality():
+def test_white_furnace_of_tiled_faces_at_quality_0_03():
     """Faces made of several input triangles (cluster links between tiles): within 4% RMS,
     and what the closed box loses or gains within 5% of the emitted power."""
     s = tiled_box(2)

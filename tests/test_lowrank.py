@@ -89,6 +89,8 @@ def test_a_backend_that_cannot_build_is_reported_with_the_reason_and_falls_back(
 
     reason = opencl_build_error("__kernel void product(__global REAL *U) { this is not C; }")
     assert reason and "Error" in reason
+    for device in backends.opencl_devices():         # every device was tried, and is named
+        assert device.name.strip() in reason
     monkeypatch.setitem(backends._UNAVAILABLE, "opencl", reason)
     h, rows = box
     lr = build(h, rows, h.levels - 1)

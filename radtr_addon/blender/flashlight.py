@@ -13,6 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..lowrank.backends import DEFAULT_BACKEND
 from ..lowrank.flashlight import Spot
 from ..reconstruct import mesh_part, vertex_weights
 
@@ -179,7 +180,7 @@ def cache_folder():
         return Path(bpy.app.tempdir or "/tmp") / "radtr_lowrank"
 
 
-def flashlight_for(job, level: int, backend: str = "numpy", folder=None, refine_to: int = 0, user: str = ""):
+def flashlight_for(job, level: int, backend: str = DEFAULT_BACKEND, folder=None, refine_to: int = 0, user: str = ""):
     """A Flashlight over a finished SolveJob: low-rank factors of ``level``, refined to
     ``refine_to`` clusters where the light is when that is more (cached), and the meshes to
     write to. Returns (flashlight, meshes, warnings, read_from_cache)."""

@@ -49,7 +49,7 @@ LEAK_SHARE = 0.1
 class HierarchicalSettings:
     """The knobs: ``epsilon`` (Quality) trades time for error; the rest bound the work."""
 
-    epsilon: float = 1e-2          # link error bound / the scene's mean emitted exitance
+    epsilon: float = 0.1           # link error bound / the scene's mean emitted exitance
     max_level: int = 8             # element splits below an input triangle
     min_area: float = 1e-6         # smallest element, as a fraction of the scene's area
     tolerance: float = 1e-4        # Jacobi stop: residual power / emitted

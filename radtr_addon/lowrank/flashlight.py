@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SceneError
-from .backends import make_backend
+from .backends import DEFAULT_BACKEND, make_backend
 
 
 @dataclass
@@ -157,7 +157,7 @@ def _name_of(backend) -> str:
 class Flashlight:
     """Per-frame B for spots over a solved patch scene, colour or mono, on a chosen back-end."""
 
-    def __init__(self, scene, lowrank, backend: str = "numpy", dtype=np.float32, user: str = "", warn=None,
+    def __init__(self, scene, lowrank, backend: str = DEFAULT_BACKEND, dtype=np.float32, user: str = "", warn=None,
                  groups: ShadowGroups | None = None):
         from ..formfactors.raycast import EmbreeRays
 

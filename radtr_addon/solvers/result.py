@@ -44,6 +44,17 @@ class SolveResult:
         scale = np.where(self.emitted > 0, self.emitted, 1.0)
         return float(np.max(np.abs(self.emitted - books) / scale))
 
+    def books(self) -> str:
+        """Where the emitted light went, as shares of it (channels summed): a loss shows in
+        ``escaped`` (light that left the scene, or that the hierarchical links lost)."""
+        total = float(self.emitted.sum())
+        if total <= 0:
+            return "no light emitted"
+        parts = {"absorbed": self.absorbed, "escaped": self.escaped, "blocked": self.blocked, "unshot": self.unshot}
+        shares = ", ".join(f"{name} {float(v.sum()) / total:.1%}" for name, v in parts.items()
+                           if name != "unshot" or v.sum() > 0)
+        return f"emitted {total:.4g} W: {shares}"
+
     def display(self, rho: np.ndarray) -> np.ndarray:
         """B plus the ambient term rho x ambient (after Cohen et al. 1988), for showing partial solves."""
         return self.B + rho * self.ambient
