@@ -2,6 +2,7 @@
 ``bench skeleton --quick`` prints its table and JSON."""
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -20,6 +21,10 @@ def test_solve_bundled_scene_writes_blend_and_png(tmp_path, blend):
               "--out", str(tmp_path / "r.blend"), "--render", str(tmp_path / "r.png"))
     assert out.returncode == 0, out.stderr[-2000:]
     assert "energy balance error" in out.stdout
+    # the power books as shares: they add up, and light leaves through the open front
+    books = dict((name, float(x)) for name, x in re.findall(r"(absorbed|escaped|blocked|unshot) ([\d.]+)%", out.stdout))
+    assert abs(sum(books.values()) - 100) < 0.3, books
+    assert books["escaped"] > 5 and books["absorbed"] > 30, books
     blend.ops.wm.open_mainfile(filepath=str(tmp_path / "r.blend"))
     assert len(blend.data.collections["RadTR"].objects) == 8
     img = blend.data.images.load(str(tmp_path / "r.png"))

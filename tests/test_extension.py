@@ -31,6 +31,7 @@ INSTALL = textwrap.dedent("""
     job = importlib.import_module(enabled[0] + ".operators.session").running["last"]
     light, meshes, warnings, hit = flashlight.flashlight_for(job, 1)
     print("RADTR-SOLVED", job.leaves.n, len(job.objects), float(job.B.max()), hit)
+    print("RADTR-BACKEND", light.backend_name, *warnings)
     print("RADTR-FILES", *sorted(p.name for p in flashlight.cache_folder().iterdir()))
 """)
 
@@ -56,8 +57,11 @@ def test_zip_installs_and_registers(extension_zip, tmp_path):
     assert cache.startswith(str(tmp_path / "user")) and cache.endswith("user_default/radtr/lowrank"), cache
     site = list((tmp_path / "user").glob("extensions/.local/lib/python3.*/site-packages"))
     assert site, "the extension's wheels were not installed"
-    for package in ("scipy", "embreex", "pyopencl"):
+    for package in ("scipy", "embreex", "pyopencl", "numba", "llvmlite"):
         assert (site[0] / package).is_dir(), package
+    # the flashlight's default back-end runs from the bundled wheels (no fallback to numpy)
+    backend = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-BACKEND")).split(" ", 1)[1]
+    assert backend == "numba", backend
     n, objects, peak, hit = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-SOLVED")).split()[1:]
     assert int(n) > 100 and int(objects) == 8 and float(peak) > 0 and hit == "False"
     files = next(x for x in run.stdout.splitlines() if x.startswith("RADTR-FILES")).split()[1:]
@@ -69,4 +73,4 @@ def test_zip_carries_wheels_for_both_pythons(extension_zip):
 
     names = zipfile.ZipFile(extension_zip).namelist()
     for tag in ("cp311", "cp313"):
-        assert sum(f"-{tag}-" in n for n in names) == 4, (tag, [n for n in names if n.endswith(".whl")])
+        assert sum(f"-{tag}-" in n for n in names) == 6, (tag, [n for n in names if n.endswith(".whl")])
