@@ -11,7 +11,7 @@ if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import bpy, scipy, embree
   .venv/bin/python -m pip install -q -r requirements.txt
   # PoCL builds for the CPU its LLVM names; where it cannot, Intel's CPU runtime is the OpenCL
   # device (an ICD in the environment's own vendors folder, which the back-ends read).
-  if ! .venv/bin/python -m radtr_addon backends; then
+  if ! .venv/bin/python -m radtr_addon backends opencl; then
     echo "dev.sh: PoCL cannot build here; installing Intel's CPU runtime for OpenCL" >&2
     .venv/bin/python -m pip install -q -r requirements-opencl-cpu.txt
     mkdir -p .venv/etc/OpenCL/vendors

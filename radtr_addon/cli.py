@@ -218,16 +218,21 @@ def cmd_sequence(args) -> int:
 
 
 def cmd_backends(args) -> int:
-    """Each low-rank back-end and whether it runs here (the OpenCL ones: on which device, or
-    why not); 1 when one cannot run."""
+    """Each low-rank back-end (or those named) and whether it runs here (the OpenCL ones: on
+    which device, or why not); 1 when one cannot run."""
     from .lowrank.backends import opencl_device, unavailable
 
-    for name, cls in BACKENDS.items():
+    names = args.names or list(BACKENDS)
+    unknown = sorted(set(names) - set(BACKENDS))
+    if unknown:
+        raise SettingsError(f"no back-end named {', '.join(unknown)}: they are {', '.join(BACKENDS)}")
+    for name in names:
+        cls = BACKENDS[name]
         reason = unavailable(name)
         device = opencl_device(cls.source)[0] if reason is None and hasattr(cls, "source") else None
         where = f" on {device.platform.name} {device.name.strip()}" if device is not None else ""
         print(f"{name}: " + (f"unavailable: {reason}" if reason else f"available{where}"))
-    return int(any(unavailable(name) for name in BACKENDS))
+    return int(any(unavailable(name) for name in names))
 
 
 def cmd_bench(args) -> int:
@@ -299,6 +304,7 @@ def main(argv=None) -> int:
     add_arguments(w)
     w.set_defaults(func=cmd_sequence)
     k = sub.add_parser("backends", help="list the low-rank back-ends and whether each runs on this machine")
+    k.add_argument("names", nargs="*", help="only these (exit status 1 when one cannot run)")
     k.set_defaults(func=cmd_backends)
     b = sub.add_parser("bench", formatter_class=shown, help="run a benchmark and print its table")
     b.add_argument("name", help="benchmark name, e.g. skeleton")

@@ -133,3 +133,19 @@ def test_sequence_from_exported_emission(tmp_path):
     bad = run("sequence", "cornell_box", "--prefix", str(tmp_path / "em"), "--suffix", ".dat", "--from", "3",
               "--to", "3", "--out-dir", str(tmp_path / "seq"), *args)
     assert bad.returncode == 2 and "em3.dat" in bad.stderr and "rows" in bad.stderr
+
+
+def test_backends_lists_each_backend_with_its_device_or_reason():
+    from radtr_addon.lowrank.backends import BACKENDS, unavailable
+
+    out = run("backends")
+    lines = dict(line.split(": ", 1) for line in out.stdout.splitlines())
+    assert set(lines) == set(BACKENDS), out.stdout
+    for name in BACKENDS:
+        reason = unavailable(name)
+        assert lines[name] == f"unavailable: {reason}" if reason else lines[name].startswith("available")
+    assert lines["opencl"].startswith("unavailable") or " on " in lines["opencl"]      # the device it runs on
+    assert out.returncode == int(any(unavailable(name) for name in BACKENDS))
+    assert run("backends", "numpy").returncode == 0
+    bad = run("backends", "cuda")
+    assert bad.returncode == 2 and "no back-end named cuda" in bad.stderr

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
@@ -302,11 +303,21 @@ def opencl_device(source: str = _KERNEL):
         try:
             ctx = cl.Context([device])
             for real in ("float", "double"):
-                cl.Program(ctx, source.replace("REAL", real)).build()
+                _build(ctx, source.replace("REAL", real))
             return device, None
         except Exception as exc:
             errors.append(f"{device.platform.name} {device.name.strip()}: {_first_line(exc)}")
     return None, "; ".join(errors) or "no OpenCL driver is installed"
+
+
+def _build(ctx, source: str):
+    """The program of ``source`` built for ``ctx``; a build log alone is no warning (Intel's
+    runtime logs every build), a failed build still raises with it."""
+    import pyopencl as cl
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", cl.CompilerWarning)
+        return cl.Program(ctx, source).build()
 
 
 def _first_line(exc: Exception) -> str:
@@ -338,7 +349,7 @@ class OpenCLBackend:
         self.ctx = cl.Context([device])
         self.queue = cl.CommandQueue(self.ctx)
         real = "float" if self.dtype == np.float32 else "double"
-        self.kernel = cl.Kernel(cl.Program(self.ctx, self.source.replace("REAL", real)).build(), "product")
+        self.kernel = cl.Kernel(_build(self.ctx, self.source.replace("REAL", real)), "product")
         mf = cl.mem_flags
         self.U = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=self._device_U(lowrank))
         self.rho = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
