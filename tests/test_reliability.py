@@ -517,7 +517,7 @@ def doubled_box(other_diagonal: bool = False):
 
 @pytest.mark.parametrize("other_diagonal, pairs", [(False, 192), (True, 384)])
 def test_coincident_back_to_back_faces_are_named_when_form_factors_are_set_up(other_diagonal, pairs):
-    from radtr_addon.formfactors.coincident import back_to_back_pairs
+    from radtr_addon.formfactors.coincident import back_to_back_pairs, twins
     from radtr_addon.formfactors.methods import FormFactors, FormFactorSettings
     from radtr_addon.hierarchy import subdivide
 
@@ -525,6 +525,11 @@ def test_coincident_back_to_back_faces_are_named_when_form_factors_are_set_up(ot
     found = back_to_back_pairs(leaves.vertices, leaves.triangles, leaves.normals)
     assert len(found) == pairs and set(leaves.object_index[found].ravel()) == {0, 1}
     assert np.all(leaves.object_index[found[:, 0]] != leaves.object_index[found[:, 1]])
+    # twins: the same three corners facing the other way (with the other diagonal, none)
+    twin = twins(leaves.vertices, leaves.triangles, leaves.normals)
+    has = np.flatnonzero(twin >= 0)
+    assert len(has) == (0 if other_diagonal else 2 * pairs)
+    assert np.all(twin[twin[has]] == has) and np.allclose(leaves.normals[has], -leaves.normals[twin[has]])
     ff = FormFactors(leaves, FormFactorSettings("embree", rays=16))
     assert ff.warnings == [f"{pairs} pairs of coincident back-to-back faces (two faces at the same place facing away "
                            f"from each other) in 'room' and 'shell': each face is lit from its front only, as a box "

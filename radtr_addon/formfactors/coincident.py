@@ -32,6 +32,18 @@ def back_to_back_pairs(vertices: np.ndarray, triangles: np.ndarray, normals: np.
     return out.reshape(-1, 2)
 
 
+def twins(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Per triangle (n,), the triangle with the same three corners facing the other way, or
+    -1: the two sides of one two-sided face (an emitter's back, a face modelled twice)."""
+    twin = np.full(len(triangles), -1, np.int64)
+    ok = np.flatnonzero(np.abs(np.linalg.norm(normals, axis=1) - 1.0) < 1e-3)
+    if len(ok):
+        step = TOLERANCE * (bounding_box(vertices)[1] or 1.0)
+        i, j = ok[_same_corners(vertices[triangles[ok]], normals[ok], step)].T
+        twin[i], twin[j] = j, i
+    return twin
+
+
 def _opposite(normals, i, j):
     return np.einsum("ij,ij->i", normals[i], normals[j]) < -1 + 1e-6
 

@@ -7,7 +7,9 @@ behind a sofa 5 cm away): many links, each within epsilon, leak light there toge
 for each input triangle the distance h to the first surface along its normal is taken at
 the centroids of a grid of cells that are the element tree's own (4^g cells in the order
 of ``Nodes.split``'s children, g up to the tree's depth, finer on larger triangles); h is 0
-where that surface shows its back (the cell is under a box, however tall). An
+where that surface shows its back (the cell is under a box, however tall), unless it is one
+side of a two-sided face (``coincident.twins``: a two-sided lamp under a ceiling shows the
+ceiling its upper side; taken for a box's back, it hid the hot ceiling over it). An
 element is *mixed* when among the cells it covers some have a surface near in front
 (``NEAR_SHARE``) and some do not; every link into a mixed element is refined at the
 receiver, down to elements wholly in the gap or wholly out of it (or the deepest level).
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..formfactors.coincident import twins
 from .quadratic import _CHILDREN
 
 #: Grid cells about this fraction of the scene's diagonal across (radius), at most.
@@ -71,12 +74,14 @@ class Proximity:
         self.offset = np.concatenate([[0], np.cumsum(4 ** self.g)])
         self.h = np.empty(self.offset[-1])
         tri = s.vertices[s.triangles]
+        twin = twins(s.vertices, s.triangles, s.normals)
         for g in np.unique(self.g):
             ts = np.flatnonzero(self.g == g)
             pts = np.einsum("pk,tkc->tpc", cell_centroids(int(g)), tri[ts])
             n = np.repeat(s.normals[ts], 4 ** g, axis=0)
             h, hit = caster.first_hit(pts.reshape(-1, 3) + caster.epsilon * n, n)
-            back = (hit >= 0) & (np.einsum("kc,kc->k", s.normals[np.maximum(hit, 0)], n) > 0)
+            hit_ = np.maximum(hit, 0)
+            back = (hit >= 0) & (np.einsum("kc,kc->k", s.normals[hit_], n) > 0) & (twin[hit_] < 0)
             self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = np.where(back, 0.0, h)
         self.gap = self.h == 0                              # per cell: covered (a surface's back on it)
         self.covered = np.add.reduceat(self.gap, self.offset[:-1]) > 0      # per input triangle

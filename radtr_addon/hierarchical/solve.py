@@ -41,6 +41,11 @@ EXACT_CLUSTER = 256
 CORNER_INSET = 0.01
 #: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
 CORNER_RAYS = 16
+#: Least reflectance a link's error is weighed by: an error of the light a receiver takes
+#: changes its B by rho times it, and the power books (absorbed) by the rest, so a black
+#: receiver's links are held to the bound too (an up-facing lamp 30 cm under a ceiling: 15%
+#: of the emitted light was in no book, its hot ceiling's coarse links into the lamp unrefined).
+BOOKS_RHO = 0.1
 #: Share of epsilon that a partly seen source's spread may bring its link (``_leaks``).
 LEAK_SHARE = 0.1
 
@@ -258,6 +263,7 @@ class HierarchicalRadiosity:
         term = self._source_term(L, bound=True)
         rho = nd.rho[rcv]
         rho[cr] = nd.rho_max[rcv[cr], None]
+        rho = np.maximum(rho, BOOKS_RHO)
         err = np.zeros(len(L))
         ee = ~cs & ~cr
         if ee.any():
