@@ -53,6 +53,15 @@ def check_args(args):
         from .tasks import export_target
 
         export_target(args.out)
+    if args.command == "flashlight" and args.solver == "hierarchical":
+        raise SettingsError("the flashlight needs the low-rank factors of the uniform patch hierarchy: "
+                            "--solver hierarchical makes none (use shooting, jacobi, gauss_seidel or direct)")
+    backend = getattr(args, "backend", None)
+    if backend is not None and backend != "user" and backend not in BACKENDS:
+        raise SettingsError(f"--backend {backend}: the back-ends are {', '.join(BACKENDS)} and user")
+    if backend == "user" and not args.user_frame:
+        raise SettingsError("--backend user calls your function every frame: name it with "
+                            "--user-frame module:function or file.py:function")
     out_dir = getattr(args, "out_dir", None)
     if out_dir and Path(out_dir).exists() and not Path(out_dir).is_dir():
         raise SettingsError(f"--out-dir {out_dir} is a file, not a folder")
@@ -155,7 +164,7 @@ def cmd_flashlight(args) -> int:
     for w in warnings:
         print(f"RadTR warning: {w}")
     print(f"RadTR: low-rank {light.lowrank.k:,} clusters "
-          f"{'read from the cache' if hit else 'built'}")
+          f"{'read from the cache' if hit else 'built'}; frames on the {light.backend_name} back-end")
     for path in render_poses(bpy.context.scene, light, meshes, spots_for(poses, job.leaves), args.out_dir):
         print(f"RadTR: rendered {path}")
     return 0

@@ -101,8 +101,8 @@ class Settings:
                 ("levels", s.levels, s.levels >= 0, "0 or more"),
                 ("resolution", s.resolution, s.resolution >= 2, "at least 2"),
                 ("quality", s.quality, 1e-4 <= s.quality <= 1,
-                 "between 1e-4 and 1 (smaller: finer, slower; Quality 0.01 solves the bundled furnished room "
-                 "in minutes)"),
+                 "between 1e-4 and 1 (smaller: finer, slower; at 0.1 the bundled furnished room takes "
+                 "about 1.5 minutes, at 0.03 over 10)"),
                 ("tolerance", s.tolerance, 0 <= s.tolerance < np.inf, "0 or more"),
                 ("iterations", s.max_iterations, s.max_iterations >= 1, "at least 1"),
                 ("gather rays", s.gather_rays, s.gather_rays >= 0, "0 (patch mean) or more"),

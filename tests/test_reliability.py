@@ -205,6 +205,21 @@ def test_flashlight_poses_are_checked_before_any_work_naming_the_pose(tmp_path, 
         read_poses(str(path))
 
 
+@pytest.mark.parametrize("flags, message", [
+    (["--backend", "cuda"], "--backend cuda: the back-ends are numpy, numba"),
+    (["--backend", "user"], "--backend user calls your function every frame: name it with --user-frame"),
+    (["--solver", "hierarchical"], "the flashlight needs the low-rank factors of the uniform patch hierarchy"),
+])
+def test_flashlight_settings_are_refused_before_the_solve(tmp_path, capsys, monkeypatch, flags, message):
+    from radtr_addon import cli
+
+    poses = tmp_path / "poses.json"
+    poses.write_text('[{"position": [0.3, 0.8, 0.3], "direction": [0, -1, 0]}]')
+    monkeypatch.setattr(cli, "open_scene", lambda *a: pytest.fail("the scene was opened"))
+    assert cli.main(["flashlight", "cornell_box", "--poses", str(poses), *flags]) == 2
+    assert message in capsys.readouterr().err
+
+
 def test_flashlight_level_beyond_the_hierarchy_is_an_error(cornell, tmp_path):
     from radtr_addon.blender.flashlight import flashlight_for
 
