@@ -289,8 +289,10 @@ def opencl_device(source: str = _KERNEL):
     PoCL compiles for the CPU that its LLVM detects; on a CPU that LLVM cannot name its
     build fails ("unknown target CPU 'generic'") and the next device is tried.
     """
-    import pyopencl as cl
-
+    try:
+        import pyopencl as cl
+    except ImportError as exc:
+        return None, _first_line(exc)
     if os.environ.get("PYOPENCL_CTX"):
         try:
             candidates = cl.create_some_context(interactive=False).devices
