@@ -220,20 +220,43 @@ class NumbaBackend:
         return B
 
 
-class NumbaInt8Backend(NumbaBackend):
-    """``NumbaBackend`` reading U as 8-bit integers with a scale per column (a quarter of the
-    bytes; the scales folded into the coefficients); the error it adds is bounded by
-    ``int8_error_bound``."""
+def quantize_columns(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """U (n, k) as 8-bit integers by column, stored as U^T (k, n) int8, and the column scales
+    (k,): U ~ q x scale, each entry off by at most scale / 2 (``int8_error_bound``)."""
+    scale = np.abs(U).max(axis=0) / 127.0
+    scale[scale == 0] = 1.0
+    return np.ascontiguousarray(np.rint(U / scale).T.astype(np.int8)), scale
 
-    label, description = "Numba 8-bit", "Numba reading U as 8-bit integers: a quarter of the bytes, about 0.3% error"
+
+def int8_error_bound(scale: np.ndarray, Z: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Largest |B error| (n, channels) 8-bit U can add for coefficients Z (k, channels):
+    rho x sum_g scale_g |Z_g| / 2."""
+    return rho * (0.5 * scale @ np.abs(Z))
+
+
+class Int8Columns:
+    """U as 8-bit integers with a scale per column (``quantize_columns``), the scales folded
+    into the coefficients: a mixin before a back-end class, whose U then takes a quarter of
+    the bytes of float32; the error it adds is bounded by ``int8_error_bound``."""
+
     exact = False
 
-    def _host_U(self, lowrank) -> np.ndarray:
+    def _quantized(self, lowrank) -> np.ndarray:
+        """U^T (k, n) as int8; sets ``scale``."""
         q, self.scale = quantize_columns(lowrank.U)
-        return np.ascontiguousarray(q.T)
+        return q
 
     def coefficients(self, E: np.ndarray) -> np.ndarray:
         return self.lowrank.coefficients(E) * self.scale[:, None]
+
+
+class NumbaInt8Backend(Int8Columns, NumbaBackend):
+    """``NumbaBackend`` reading U as 8-bit integers (``Int8Columns``)."""
+
+    label, description = "Numba 8-bit", "Numba reading U as 8-bit integers: a quarter of the bytes, about 0.3% error"
+
+    def _host_U(self, lowrank) -> np.ndarray:
+        return np.ascontiguousarray(self._quantized(lowrank).T)
 
 
 #: One work-item per patch; U is stored by columns (U^T row-major), so neighbouring
@@ -385,37 +408,17 @@ class OpenCLBackend:
         return self.out.copy()
 
 
-def quantize_columns(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """U (n, k) as 8-bit integers by column, stored as U^T (k, n) int8, and the column scales
-    (k,): U ~ q x scale, each entry off by at most scale / 2 (``int8_error_bound``)."""
-    scale = np.abs(U).max(axis=0) / 127.0
-    scale[scale == 0] = 1.0
-    return np.ascontiguousarray(np.rint(U / scale).T.astype(np.int8)), scale
-
-
-def int8_error_bound(scale: np.ndarray, Z: np.ndarray, rho: np.ndarray) -> np.ndarray:
-    """Largest |B error| (n, channels) 8-bit U can add for coefficients Z (k, channels):
-    rho x sum_g scale_g |Z_g| / 2."""
-    return rho * (0.5 * scale @ np.abs(Z))
-
-
-class OpenCLInt8Backend(OpenCLBackend):
-    """``OpenCLBackend`` reading U as 8-bit integers with a scale per column (a quarter of the
-    bytes of float32: the product is bound by reading U). The scales are folded into the
-    coefficients, so the kernel only widens each byte; the error it adds is bounded by
-    ``int8_error_bound`` (the bench reports it against float64)."""
+class OpenCLInt8Backend(Int8Columns, OpenCLBackend):
+    """``OpenCLBackend`` reading U as 8-bit integers (``Int8Columns``): the product is bound
+    by reading U, and the kernel only widens each byte (the bench reports the error against
+    float64)."""
 
     label, description = "OpenCL 8-bit", "OpenCL reading U as 8-bit integers: a quarter of the bytes, about 0.3% error"
-    exact = False
     source = _KERNEL.replace("const REAL *UT", "const char *UT")
     probe = staticmethod(lambda: opencl_build_error(OpenCLInt8Backend.source))
 
     def _device_U(self, lowrank) -> np.ndarray:
-        q, self.scale = quantize_columns(lowrank.U)
-        return q
-
-    def coefficients(self, E: np.ndarray) -> np.ndarray:
-        return self.lowrank.coefficients(E) * self.scale[:, None]
+        return self._quantized(lowrank)
 
 
 register("numpy", NumpyBackend)
