@@ -48,6 +48,10 @@ def _faces() -> tuple[np.ndarray, np.ndarray]:
 
 
 DIRECTION_FACES, _FACE_INVERSE = _faces()
+#: The faces (42, 6) around each table direction (five round the icosahedron's corners, the
+#: first repeated): a unit vector lies in one of the faces round its nearest direction.
+_AROUND = np.array([(lambda f: f + f[:6 - len(f)])(np.flatnonzero((DIRECTION_FACES == k).any(axis=1)).tolist())
+                    for k in range(len(DIRECTIONS))])
 
 
 def direction_weights(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,9 +59,12 @@ def direction_weights(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     (m, 3) summing to 1 (its gnomonic barycentric coordinates in their face): a quantity
     tabled by direction is read between them, not from the nearest one (up to 18 degrees
     away, where a face seen edge-on shows nothing)."""
-    lam = np.einsum("fij,mj->mfi", _FACE_INVERSE, w)                 # (m, 80, 3)
-    face = np.argmax(lam.min(axis=2), axis=1)
-    lam = np.maximum(lam[np.arange(len(w)), face], 0.0)
+    faces = _AROUND[np.argmax(w @ DIRECTIONS.T, axis=1)]                 # (m, 6)
+    lam = np.einsum("mfij,mj->mfi", _FACE_INVERSE[faces], w)             # (m, 6, 3)
+    pick = np.argmax(lam.min(axis=2), axis=1)
+    rows = np.arange(len(w))
+    face = faces[rows, pick]
+    lam = np.maximum(lam[rows, pick], 0.0)
     return DIRECTION_FACES[face], lam / np.maximum(lam.sum(axis=1, keepdims=True), 1e-300)
 
 
