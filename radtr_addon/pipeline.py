@@ -264,9 +264,10 @@ class Solve:
     @property
     def eta(self) -> float | None:
         """Seconds until the residual reaches the tolerance, at the rate its log fell over the
-        latter half of the solve so far; None until it has fallen over three slices."""
+        latter half of the solve so far; None until it has fallen over three slices, and
+        while a hierarchical solve refines its links (how many it will make is not known)."""
         trace = self._trace
-        if len(trace) < 3:
+        if len(trace) < 3 or getattr(self.solver, "refining", None) is not None:   # links being refined
             return None
         (t0, r0), (t1, r1) = trace[len(trace) // 2 - 1], trace[-1]
         tol = max(self.solver.tol, 1e-300)

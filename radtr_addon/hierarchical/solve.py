@@ -48,6 +48,8 @@ CORNER_RAYS = 16
 BOOKS_RHO = 0.1
 #: Share of epsilon that a partly seen source's spread may bring its link (``_leaks``).
 LEAK_SHARE = 0.1
+#: Candidate links evaluated per slice of a refine (``refine``).
+REFINE_CHUNK = 500_000
 
 
 @dataclass
@@ -211,6 +213,8 @@ class HierarchicalRadiosity:
         self.rounds: list[dict] = []
         self.stage_seconds = {"clusters": time.perf_counter() - t0, "refine": 0.0, "solve": 0.0}
         self.done = False
+        self.refining = None              # [links kept, candidates left] while a refine runs
+        self._round = None                # the refine in progress: (steps, links it leaves as they are)
         self._t_start = time.perf_counter()
         self.tol, self.max_iterations = s.tolerance, s.max_rounds
 
@@ -225,6 +229,10 @@ class HierarchicalRadiosity:
 
     @property
     def phase(self) -> str:
+        if self.refining is not None:
+            kept, left = self.refining
+            return (f"hierarchical round {len(self.rounds) + 1}, refining: {kept:,} links kept, "
+                    f"{left:,} to evaluate")
         return f"hierarchical round {len(self.rounds) + 1}, {len(self.links):,} links"
 
     def energy(self) -> dict[str, float]:
@@ -330,12 +338,20 @@ class HierarchicalRadiosity:
         out[i] = rho * self.Brange[L.src[i]] * L.occluded[i] > LEAK_SHARE * self.eps
         return out
 
-    def refine(self, src: np.ndarray, rcv: np.ndarray, cancel=None) -> Links:
-        """Evaluate candidate links, keep those within the bound, split the rest down to their children."""
+    def refine(self, src: np.ndarray, rcv: np.ndarray):
+        """Evaluate candidate links (src, rcv), keep those within the bound, split the rest
+        down to their children; a generator that yields after each slice of at most
+        ``REFINE_CHUNK`` candidates (a large scene's first round shows progress and can be
+        cancelled; ``refining`` says how far it is) and returns the Links kept."""
         nd = self.nodes
-        kept = []
+        kept, queue = [], [(src, rcv)] if len(src) else []
         total = len(self.links)
-        while len(src):
+        self.refining = [0, len(src)]
+        while queue:
+            src, rcv = queue.pop()
+            if len(src) > REFINE_CHUNK:
+                queue.append((src[REFINE_CHUNK:], rcv[REFINE_CHUNK:]))
+                src, rcv = src[:REFINE_CHUNK], rcv[:REFINE_CHUNK]
             L = self.evaluator.evaluate(src, rcv)
             need, split_src = self._to_refine(L)
             kept.append(L.take(~need & (L.coef.max(axis=1) > 0)))
@@ -349,8 +365,11 @@ class HierarchicalRadiosity:
             nd.split(ends[~nd.cluster[ends]])
             self._grow_state()
             src, rcv = expand(nd, L.src, L.rcv, split_src)
-            if cancel is not None and cancel():
-                raise Cancelled("solve cancelled; nothing was changed")
+            if len(src):
+                queue.append((src, rcv))
+            self.refining = [sum(len(k) for k in kept), sum(len(q[0]) for q in queue)]
+            yield
+        self.refining = None
         return Links.concat(kept)
 
     def refine_lights(self):
@@ -499,26 +518,37 @@ class HierarchicalRadiosity:
 
     # -- rounds --------------------------------------------------------------------------
     def step(self, count: int = 1, cancel=None) -> bool:
-        """One refine-solve round (whatever ``count``); True when no link needed refining
-        (or the rounds ran out)."""
+        """One slice of a refine-solve round (whatever ``count``): a slice of the refine
+        (``refine``), or, once it is done, the solve; True when no link needed
+        refining (or the rounds ran out)."""
         t0 = time.perf_counter()
         nd = self.nodes
-        if not self.rounds:
+        if self._round is None:
             self.refine_lights()
-            root = np.array([0])
-            self.links = self.refine(root, root, cancel)
-            refined = len(self.links)
-        else:
-            self.refine_lights()
-            need, split_src = self._to_refine(self.links)
-            refined = int(need.sum())
-            if refined:
+            if not self.rounds:
+                root = np.array([0])
+                self._round = (self.refine(root, root), Links.empty(), 1)
+            else:
+                need, split_src = self._to_refine(self.links)
+                refined = int(need.sum())
                 L, split_src = self.links.take(need), split_src[need]
                 ends = np.where(split_src, L.src, L.rcv)
                 nd.split(ends[~nd.cluster[ends]])
                 self._grow_state()
                 src, rcv = expand(nd, L.src, L.rcv, split_src)
-                self.links = Links.concat([self.links.take(~need), self.refine(src, rcv, cancel)])
+                self._round = (self.refine(src, rcv), self.links.take(~need), refined)
+        steps, unchanged, refined = self._round
+        try:
+            next(steps)
+            self.stage_seconds["refine"] += time.perf_counter() - t0
+            if cancel is not None and cancel():
+                raise Cancelled("solve cancelled; nothing was changed")
+            return False
+        except StopIteration as stop:
+            self.links = Links.concat([unchanged, stop.value])
+            self._round = None
+        if not self.rounds:
+            refined = len(self.links)
         self.stage_seconds["refine"] += time.perf_counter() - t0
         if refined or not self.rounds:
             self.solve(cancel)
