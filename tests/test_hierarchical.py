@@ -474,3 +474,47 @@ def test_a_two_sided_lamp_does_not_cover_the_ceiling_over_it():
     ceiling = np.flatnonzero(scene.object_index == 0)
     assert not np.concatenate([c.gap[c.offset[t]:c.offset[t + 1]] for t in ceiling]).any()
     assert np.all(np.abs(r.result.escaped) < 0.03 * r.result.emitted)
+
+
+def test_links_dropped_as_facing_away_carry_no_light():
+    """``Evaluator.facing`` drops a pair of triangles only where no point of one sees the front
+    of the other (Lambert's closed form at points of each, ``point_to_polygon``), and keeps
+    every pair that does see it."""
+    scene, _ = box_on_floor()
+    hr = HierarchicalRadiosity(scene, HierarchicalSettings())
+    roots = hr.nodes.element_root
+    t, u = np.nonzero(~np.eye(scene.n, dtype=bool))
+    kept = hr.evaluator.facing(roots[t], roots[u])
+    tri, normal = scene.vertices[scene.triangles], scene.normals
+    inner = np.array([[a, b, 1 - a - b] for a in np.linspace(0.02, 0.96, 12) for b in np.linspace(0.02, 0.96, 12)
+                      if a + b < 0.98])
+    sees = []
+    for i, j in zip(t, u):
+        points = inner @ tri[j] + 1e-9 * normal[j]
+        sees.append(any((p - tri[i, 0]) @ normal[i] > 1e-9 and point_to_polygon(p, normal[j], tri[i]) > 1e-9
+                        for p in points))
+    sees = np.array(sees)
+    assert np.array_equal(kept, sees)
+    assert 0.3 < (~kept).mean() < 0.9           # the box's sides and bottom, the floor's two halves
+
+
+def test_a_refine_in_slices_gives_the_same_links_and_light(monkeypatch):
+    """The refine runs in slices (progress between them, cancel between them); in a closed
+    box (no shadows, so no random visibility) slices of 50 candidates give the links and
+    the radiosity of one slice."""
+    from radtr_addon.errors import Cancelled
+    from radtr_addon.hierarchical import solve
+
+    _, whole = run(tiled_box(4), quality=0.1)
+    monkeypatch.setattr(solve, "REFINE_CHUNK", 50)
+    hr = HierarchicalRadiosity(tiled_box(4), HierarchicalSettings(epsilon=0.1))
+    phases = []
+    while not hr.step():
+        phases.append(hr.phase)
+    sliced = hr.result()
+    assert sum("refining" in p for p in phases) > 10
+    assert sliced.links == whole.links and sliced.leaves.n == whole.leaves.n
+    assert np.allclose(np.sort(sliced.result.B[:, 0]), np.sort(whole.result.B[:, 0]), rtol=1e-9)
+    hr = HierarchicalRadiosity(tiled_box(4), HierarchicalSettings(epsilon=0.1))
+    with pytest.raises(Cancelled):
+        hr.step(cancel=lambda: True)
