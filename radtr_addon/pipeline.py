@@ -19,6 +19,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import Cancelled, SettingsError
+from .formfactors.coincident import back_to_back_warning
 from .formfactors.methods import FormFactors
 from .hierarchy import subdivide
 from .lights import Light, direct_irradiance, sky_irradiance
@@ -137,6 +138,9 @@ class Solve:
             self.stats.warnings += warnings
         base.validate(emission_needed=False)        # the solver checks lights and the World too
         check_writable(base.emission, lambda i: f"emission of {base.patch_label(i)}")
+        coincident = back_to_back_warning(base)
+        if coincident:
+            self._warn([coincident])
         scene, shown = self._with_emitter_backs(base)
         with self._stage("lights"):
             external = self._external_light(scene)
@@ -257,6 +261,8 @@ class Solve:
     def readout(self) -> str:
         """One line on where the solve stands, for the status bar, the N-panel and the CLI."""
         s = self.solver
+        if getattr(s, "refining", False):                 # no residual to speak of yet
+            return f"{s.phase}, {s.seconds:.1f} s"
         eta = self.eta
         left = f", about {eta:,.0f} s left" if eta is not None else ""
         return f"{s.phase}: residual {s.residual:.2e} (stop at {s.tol:g}), {s.seconds:.1f} s{left}"
@@ -264,10 +270,10 @@ class Solve:
     @property
     def eta(self) -> float | None:
         """Seconds until the residual reaches the tolerance, at the rate its log fell over the
-        latter half of the solve so far; None until it has fallen over three slices, and
-        while a hierarchical solve refines its links (how many it will make is not known)."""
+        latter half of the solve so far; None until it has fallen over three slices, and for a
+        hierarchical solve (rounds of refining follow each solve, how many is not known)."""
         trace = self._trace
-        if len(trace) < 3 or getattr(self.solver, "refining", None) is not None:   # links being refined
+        if len(trace) < 3 or hasattr(self.solver, "refining"):
             return None
         (t0, r0), (t1, r1) = trace[len(trace) // 2 - 1], trace[-1]
         tol = max(self.solver.tol, 1e-300)

@@ -5,6 +5,8 @@ scene through Blender. Each number checked comes from outside the hierarchical c
 white furnace B = E / (1 - rho), Howell's form factors, Lambert's point-to-polygon closed
 form (``formfactors.closed_form``), Embree form factors with the direct solver.
 """
+import re
+
 import numpy as np
 import pytest
 from geometry import PARALLEL_UNIT_SQUARES, PERPENDICULAR_UNIT_SQUARES, cube, squares
@@ -510,9 +512,15 @@ def test_a_refine_in_slices_gives_the_same_links_and_light(monkeypatch):
     hr = HierarchicalRadiosity(tiled_box(4), HierarchicalSettings(epsilon=0.1))
     phases = []
     while not hr.step():
-        phases.append(hr.phase)
+        phases.append((len(hr.rounds), hr.phase))
     sliced = hr.result()
-    assert sum("refining" in p for p in phases) > 10
+    assert sum("refining links" in p for _, p in phases) > 10
+    # the last slice of each round counts every link that round keeps, old and new
+    last = {r: p for r, p in phases if "refining links" in p}
+    assert len(last) >= 2
+    for r, p in last.items():
+        assert int(re.search(r"([\d,]+) kept", p).group(1).replace(",", "")) == hr.rounds[r]["links"]
+    assert hr.phase == f"hierarchical, {len(hr.rounds)} rounds, {sliced.links:,} links"
     assert sliced.links == whole.links and sliced.leaves.n == whole.leaves.n
     assert np.allclose(np.sort(sliced.result.B[:, 0]), np.sort(whole.result.B[:, 0]), rtol=1e-9)
     hr = HierarchicalRadiosity(tiled_box(4), HierarchicalSettings(epsilon=0.1))

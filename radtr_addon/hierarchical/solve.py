@@ -50,6 +50,8 @@ BOOKS_RHO = 0.1
 LEAK_SHARE = 0.1
 #: Candidate links evaluated per slice of a refine (``refine``).
 REFINE_CHUNK = 500_000
+#: Elements split (and their outside light sampled) per slice of ``refine_lights``.
+LIGHT_CHUNK = 20_000
 
 
 @dataclass
@@ -213,8 +215,8 @@ class HierarchicalRadiosity:
         self.rounds: list[dict] = []
         self.stage_seconds = {"clusters": time.perf_counter() - t0, "refine": 0.0, "solve": 0.0}
         self.done = False
-        self.refining = None              # [links kept, candidates left] while a refine runs
-        self._round = None                # the refine in progress: (steps, links it leaves as they are)
+        self._round = None                # the refine in progress (``_round_steps``)
+        self._progress = ""               # what it is doing, for ``phase``
         self._t_start = time.perf_counter()
         self.tol, self.max_iterations = s.tolerance, s.max_rounds
 
@@ -228,12 +230,17 @@ class HierarchicalRadiosity:
         return self.history[-1] if self.history else 1.0
 
     @property
+    def refining(self) -> bool:
+        """True while a round's refine is under way (between ``step`` slices)."""
+        return self._round is not None
+
+    @property
     def phase(self) -> str:
-        if self.refining is not None:
-            kept, left = self.refining
-            return (f"hierarchical round {len(self.rounds) + 1}, refining: {kept:,} links kept, "
-                    f"{left:,} to evaluate")
-        return f"hierarchical round {len(self.rounds) + 1}, {len(self.links):,} links"
+        if self.refining:
+            return f"hierarchical round {len(self.rounds) + 1}, {self._progress}"
+        if self.done:
+            return f"hierarchical, {len(self.rounds)} rounds, {len(self.links):,} links"
+        return f"hierarchical round {len(self.rounds)} solved, {len(self.links):,} links"
 
     def energy(self) -> dict[str, float]:
         """Fractions of the emitted power absorbed, escaped (left and received by no front
@@ -338,15 +345,14 @@ class HierarchicalRadiosity:
         out[i] = rho * self.Brange[L.src[i]] * L.occluded[i] > LEAK_SHARE * self.eps
         return out
 
-    def refine(self, src: np.ndarray, rcv: np.ndarray):
+    def refine(self, src: np.ndarray, rcv: np.ndarray, held: int = 0):
         """Evaluate candidate links (src, rcv), keep those within the bound, split the rest
         down to their children; a generator that yields after each slice of at most
         ``REFINE_CHUNK`` candidates (a large scene's first round shows progress and can be
-        cancelled; ``refining`` says how far it is) and returns the Links kept."""
+        cancelled) and returns the Links kept. ``held``: links kept from before."""
         nd = self.nodes
         kept, queue = [], [(src, rcv)] if len(src) else []
-        total = len(self.links)
-        self.refining = [0, len(src)]
+        total = held
         while queue:
             src, rcv = queue.pop()
             if len(src) > REFINE_CHUNK:
@@ -367,13 +373,14 @@ class HierarchicalRadiosity:
             src, rcv = expand(nd, L.src, L.rcv, split_src)
             if len(src):
                 queue.append((src, rcv))
-            self.refining = [sum(len(k) for k in kept), sum(len(q[0]) for q in queue)]
+            self._progress = (f"refining links: {held + sum(len(k) for k in kept):,} kept, "
+                              f"{sum(len(q[0]) for q in queue):,} candidates queued")
             yield
-        self.refining = None
         return Links.concat(kept)
 
     def refine_lights(self):
-        """Split elements over which the reflected outside light varies by more than epsilon."""
+        """Split elements over which the reflected outside light varies by more than epsilon;
+        a generator that yields before each ``LIGHT_CHUNK`` of splits."""
         nd = self.nodes
         if nd.external is None:
             return
@@ -382,8 +389,12 @@ class HierarchicalRadiosity:
             over = leaves[(nd.H_spread[leaves] > self.eps) & self.can_split(leaves)]
             if not len(over):
                 return
-            nd.split(over)
-            self._grow_state()
+            for lo in range(0, len(over), LIGHT_CHUNK):
+                self._progress = (f"splitting elements where the lights and the World vary: "
+                                  f"{lo:,} of {len(over):,}")
+                yield
+                nd.split(over[lo:lo + LIGHT_CHUNK])
+                self._grow_state()
 
     # -- solving -------------------------------------------------------------------------
     def _ancestors(self, leaves: np.ndarray) -> np.ndarray:
@@ -517,38 +528,43 @@ class HierarchicalRadiosity:
         self.stage_seconds["solve"] += time.perf_counter() - t0
 
     # -- rounds --------------------------------------------------------------------------
+    def _round_steps(self):
+        """One round's refine, as a generator of slices (``step`` runs one a call): split where
+        outside light varies, then refine the links over the bound (the first round: the root
+        cluster to itself). Returns (links, how many were refined)."""
+        nd = self.nodes
+        self._progress = "starting"
+        yield from self.refine_lights()
+        if not self.rounds:
+            root = np.array([0])
+            links = yield from self.refine(root, root)
+            return links, len(links)
+        need, split_src = self._to_refine(self.links)
+        L, split_src = self.links.take(need), split_src[need]
+        ends = np.where(split_src, L.src, L.rcv)
+        nd.split(ends[~nd.cluster[ends]])
+        self._grow_state()
+        src, rcv = expand(nd, L.src, L.rcv, split_src)
+        unchanged = self.links.take(~need)
+        new = yield from self.refine(src, rcv, held=len(unchanged))
+        return Links.concat([unchanged, new]), int(need.sum())
+
     def step(self, count: int = 1, cancel=None) -> bool:
         """One slice of a refine-solve round (whatever ``count``): a slice of the refine
-        (``refine``), or, once it is done, the solve; True when no link needed
+        (``_round_steps``), or, once it is done, the solve; True when no link needed
         refining (or the rounds ran out)."""
         t0 = time.perf_counter()
-        nd = self.nodes
         if self._round is None:
-            self.refine_lights()
-            if not self.rounds:
-                root = np.array([0])
-                self._round = (self.refine(root, root), Links.empty(), 1)
-            else:
-                need, split_src = self._to_refine(self.links)
-                refined = int(need.sum())
-                L, split_src = self.links.take(need), split_src[need]
-                ends = np.where(split_src, L.src, L.rcv)
-                nd.split(ends[~nd.cluster[ends]])
-                self._grow_state()
-                src, rcv = expand(nd, L.src, L.rcv, split_src)
-                self._round = (self.refine(src, rcv), self.links.take(~need), refined)
-        steps, unchanged, refined = self._round
+            self._round = self._round_steps()
         try:
-            next(steps)
+            next(self._round)
             self.stage_seconds["refine"] += time.perf_counter() - t0
             if cancel is not None and cancel():
                 raise Cancelled("solve cancelled; nothing was changed")
             return False
         except StopIteration as stop:
-            self.links = Links.concat([unchanged, stop.value])
+            self.links, refined = stop.value
             self._round = None
-        if not self.rounds:
-            refined = len(self.links)
         self.stage_seconds["refine"] += time.perf_counter() - t0
         if refined or not self.rounds:
             self.solve(cancel)
