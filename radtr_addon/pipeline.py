@@ -29,6 +29,8 @@ from .settings import Settings, auto_max_area
 from .solvers import make_solver, patch_bytes
 from .textures import varying_reflectance
 
+#: Settings of the uniform patches and their form factors, which a hierarchical solve does not use.
+UNIFORM_ONLY = ("max_area", "levels", "method", "resolution", "rotate", "split", "split_level", "rays")
 #: Cosine rays per point (four an element) that sample the World in a hierarchical solve.
 SKY_RAYS = 64
 
@@ -141,6 +143,10 @@ class Solve:
         coincident = back_to_back_warning(base)
         if coincident:
             self._warn([coincident])
+        unused = [k for k in UNIFORM_ONLY if getattr(settings, k) != getattr(Settings, k)]
+        if unused:
+            self._warn([f"the hierarchical solver makes its own elements and form factors: "
+                        f"{', '.join(unused)} not used"])
         scene, shown = self._with_emitter_backs(base)
         with self._stage("lights"):
             external = self._external_light(scene)

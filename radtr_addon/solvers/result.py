@@ -45,15 +45,17 @@ class SolveResult:
         return float(np.max(np.abs(self.emitted - books) / scale))
 
     def books(self) -> str:
-        """Where the emitted light went, as shares of it (channels summed): a loss shows in
-        ``escaped`` (light that left the scene, or that the hierarchical links lost)."""
+        """The power emitted per channel, and where it went as shares of it (channels
+        summed): a loss shows in ``escaped`` (light that left the scene, or that the
+        hierarchical links lost)."""
         total = float(self.emitted.sum())
         if total <= 0:
             return "no light emitted"
         parts = {"absorbed": self.absorbed, "escaped": self.escaped, "blocked": self.blocked, "unshot": self.unshot}
         shares = ", ".join(f"{name} {float(v.sum()) / total:.1%}" for name, v in parts.items()
                            if name != "unshot" or v.sum() > 0)
-        return f"emitted {total:.4g} W: {shares}"
+        watts = ", ".join(f"{float(w):.4g}" for w in self.emitted)
+        return f"emitted {watts} W (R, G, B): {shares}"
 
     def display(self, rho: np.ndarray) -> np.ndarray:
         """B plus the ambient term rho x ambient (after Cohen et al. 1988), for showing partial solves."""
