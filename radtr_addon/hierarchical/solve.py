@@ -20,6 +20,7 @@ direct solve (``tests/test_hierarchical.py``).
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -606,18 +607,37 @@ class HierarchicalRadiosity:
         H = np.einsum("mi,mic->mc", quadratic.basis(lam), self.H6[row])
         return nd.E[leaf] + nd.rho[leaf] * H
 
-    def _emission_gather(self) -> np.ndarray:
-        """H6 (leaves, 6, 3) of the emitters' own light alone, over the same links (the part
-        of H6 that ``_emitters_at`` gives exactly at the result's corners)."""
-        nd, leaves = self.nodes, self.leaf_ids
+    @contextmanager
+    def _scratch(self):
+        """Pull and gather other radiosity than the solution's, then put the trees back."""
         saved = (self.Bn, self.Bopen, self.Bgap, self.Brange, self.table)
         self.Bn, self.Bopen, self.Bgap, self.Brange = (a.copy() for a in saved[:4])
         try:
-            self._pull(leaves, self._ancestors(leaves), self.scene.emission[nd.root[leaves]],
-                       self.contacts.gap_share(leaves))
-            return self._gather(leaves, self._push_plan())
+            yield
         finally:
             self.Bn, self.Bopen, self.Bgap, self.Brange, self.table = saved
+
+    def _gather_of(self, B: np.ndarray) -> np.ndarray:
+        """H6 (leaves, 6, 3) that the links gather from the leaves' radiosity ``B``."""
+        leaves = self.leaf_ids
+        with self._scratch():
+            self._pull(leaves, self._ancestors(leaves), B, self.contacts.gap_share(leaves))
+            return self._gather(leaves, self._push_plan())
+
+    def _emission_gather(self) -> np.ndarray:
+        """H6 (leaves, 6, 3) of the emitters' own light alone, over the same links (the part
+        of H6 that ``_emitters_at`` gives exactly at the result's corners)."""
+        return self._gather_of(self.scene.emission[self.nodes.root[self.leaf_ids]])
+
+    def delivered(self, sources: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(leaving, delivered): the power (3,) that the leaves ``sources`` (a mask over
+        ``leaf_ids``) send at their solved B, and what the links hand every receiver of it.
+        In a closed scene the two are equal; where not, that source's light is lost (or made)
+        by the links: the books' escaped, source by source."""
+        A = self.nodes.area[self.leaf_ids]
+        B = np.where(np.asarray(sources, bool)[:, None], self.B, 0.0)
+        H = np.einsum("i,lic->lc", quadratic.MEAN, self._gather_of(B))
+        return (A[:, None] * B).sum(axis=0), (A[:, None] * H).sum(axis=0)
 
     def _emitters_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
                      emitters: np.ndarray) -> np.ndarray:
