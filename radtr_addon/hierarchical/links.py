@@ -149,6 +149,7 @@ class Evaluator:
         self.rng = np.random.default_rng(seed)
         s = nodes.scene
         self.cum_area = np.cumsum(s.areas[nodes.order])    # members by area, in cluster-tree order
+        self.centroids = s.centroids
         self.span = self._spans()
 
     def _spans(self) -> np.ndarray:

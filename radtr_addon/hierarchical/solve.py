@@ -30,7 +30,7 @@ from ..scene import PatchScene
 from ..solvers.result import SolveResult
 from . import quadratic
 from .contacts import Proximity
-from .links import Evaluator, Links, direction_cosines, expand, ranges
+from .links import Evaluator, Links, direction_cosines, expand, polygon_factor, ranges
 from .nodes import DIRECTIONS, Nodes
 
 #: Links held at most (about 100 bytes each), refused beyond with advice.
@@ -75,7 +75,12 @@ class ClusterMaps:
     18 degrees apart sees a face head-on as cos 18 = 0.95 of itself, once at each end, and a
     closed room lost 4% of its light through cluster links. ``S`` (sending links x input
     triangles): A max(0, n.w) along each link ``send``; ``R`` (input triangles x taking
-    links): max(0, -n.w), how much of each link ``take`` a triangle of its receiver gets."""
+    links): max(0, -n.w), how much of each link ``take`` a triangle of its receiver gets.
+    Between a small cluster and an element, each triangle goes by its own closed form
+    (``links.polygon_factor``: from the element's centre to the triangle, or from the
+    triangle's centroid to the element), scaled to undo the link's one-disc kernel: as one
+    disc at the centres' distance, the boxes of a closed room sent 5.8% of their light
+    nowhere (3.3% so; 0.5% with element links alone)."""
 
     links: Links
     send: np.ndarray
@@ -84,12 +89,14 @@ class ClusterMaps:
     R: object
 
     @classmethod
-    def of(cls, nodes: Nodes, L: Links, span: np.ndarray) -> "ClusterMaps":
+    def of(cls, evaluator, L: Links) -> "ClusterMaps":
         from scipy.sparse import csr_matrix
 
+        nodes, span = evaluator.nodes, evaluator.span
         sc = nodes.scene
         w = nodes.center[L.rcv] - nodes.center[L.src]
-        w /= np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
+        dist = np.linalg.norm(w, axis=1)
+        w /= np.maximum(dist, 1e-300)[:, None]
 
         def members(ends):
             links = np.flatnonzero(nodes.cluster[ends])           # clusters are the first nodes: in span
@@ -101,9 +108,32 @@ class ClusterMaps:
             return links, pos, t, np.einsum("ij,ij->i", sc.normals[t], w[links][pos])
 
         send, pos, t, cos = members(L.src)
-        S = csr_matrix((sc.areas[t] * np.maximum(cos, 0.0), (pos, t)), shape=(len(send), sc.n))
+        shown = sc.areas[t] * np.maximum(cos, 0.0)
+        i = send[pos]
+        er = np.flatnonzero(~nodes.cluster[L.rcv[i]])
+        if len(er):
+            # into an element: each triangle by its own closed form at the receiver's centre
+            # (the link's coefficient is V geo / (pi d^2 + A_proj); this entry undoes that)
+            j, r = i[er], L.rcv[i[er]]
+            geo = np.maximum(-np.einsum("ij,ij->i", nodes.normal[r], w[j]), 0.0)
+            whole = np.pi * dist[j] ** 2 + evaluator._shown_area(L.src[j], w[j], L.d[j], L.dw[j])
+            x = nodes.center[r] + evaluator.caster.epsilon * nodes.normal[r]
+            F = polygon_factor(x[:, None], nodes.normal[r], sc.vertices[sc.triangles[t[er]]])[:, 0]
+            shown[er] = np.where(geo > 0, F * whole / np.maximum(geo, 1e-300), 0.0)
+        S = csr_matrix((shown, (pos, t)), shape=(len(send), sc.n))
         take, pos, t, cos = members(L.rcv)
-        R = csr_matrix((np.maximum(-cos, 0.0), (t, pos)), shape=(sc.n, len(take)))
+        taken = np.maximum(-cos, 0.0)
+        i = take[pos]
+        es = np.flatnonzero(~nodes.cluster[L.src[i]])
+        if len(es):
+            # from an element: each triangle takes the closed form from its centroid
+            j, e = i[es], L.src[i[es]]
+            shown_e = nodes.area[e] * np.maximum(np.einsum("ij,ij->i", nodes.normal[e], w[j]), 0.0)
+            whole = np.pi * dist[j] ** 2 + shown_e
+            x = evaluator.centroids[t[es]] + evaluator.caster.epsilon * sc.normals[t[es]]
+            F = polygon_factor(x[:, None], sc.normals[t[es]], nodes.tri[e])[:, 0]
+            taken[es] = np.where(shown_e > 0, F * whole / np.maximum(shown_e, 1e-300), 0.0)
+        R = csr_matrix((taken, (t, pos)), shape=(sc.n, len(take)))
         return cls(L, send, S, take, R)
 
 
@@ -315,7 +345,7 @@ class HierarchicalRadiosity:
     def _cluster_maps(self) -> "ClusterMaps":
         """``ClusterMaps`` of the current links (rebuilt when the links change)."""
         if getattr(self, "_maps", None) is None or self._maps.links is not self.links:
-            self._maps = ClusterMaps.of(self.nodes, self.links, self.evaluator.span)
+            self._maps = ClusterMaps.of(self.evaluator, self.links)
         return self._maps
 
     # -- refinement ----------------------------------------------------------------------
