@@ -188,19 +188,19 @@ class Evaluator:
         out[cl] = np.diff(self.span[ends[cl]], axis=1)[:, 0]
         return out
 
-    def _members(self, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Each end's triangles: counts (L,), the end each row belongs to, corners (m, 3, 3)
-        and normals (m, 3); an element is its own triangle, a cluster its input triangles."""
+    def _members(self, ends: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each end's ``count`` (``size``) triangles, end after end: corners (m, 3, 3) and
+        normals (m, 3); an element is its own triangle, a cluster its input triangles."""
         nd, sc = self.nodes, self.nodes.scene
         cl = nd.cluster[ends]
-        count, lo = self.size(ends), np.zeros(len(ends), np.int64)
+        lo = np.zeros(len(ends), np.int64)
         lo[cl] = self.span[ends[cl], 0]
         pos, at = ranges(lo, count)
         c = cl[pos]
         tri, normal = nd.tri[ends[pos]], nd.normal[ends[pos]]
         t = nd.order[at[c]]
         tri[c], normal[c] = sc.vertices[sc.triangles[t]], sc.normals[t]
-        return count, pos, tri, normal
+        return tri, normal
 
     def facing(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
         """False for links that carry no light for certain: every pair of their triangles has
@@ -209,11 +209,13 @@ class Evaluator:
         bounding spheres overlap). Tested only where the ends hold at most ``FACING_PAIRS``
         triangle pairs; True for the rest."""
         out = np.ones(len(s), bool)
-        small = np.flatnonzero(self.size(s) * self.size(r) <= FACING_PAIRS)
+        cs, cr = self.size(s), self.size(r)
+        small = np.flatnonzero(cs * cr <= FACING_PAIRS)
         if not len(small):
             return out
-        cs, _, ts, ns = self._members(s[small])
-        cr, _, tr, nr = self._members(r[small])
+        cs, cr = cs[small], cr[small]
+        ts, ns = self._members(s[small], cs)
+        tr, nr = self._members(r[small], cr)
         link, k = ranges(np.zeros(len(small), np.int64), cs * cr)
         i = (np.cumsum(cs) - cs)[link] + k // cr[link]
         j = (np.cumsum(cr) - cr)[link] + k % cr[link]

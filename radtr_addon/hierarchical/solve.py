@@ -20,7 +20,6 @@ direct solve (``tests/test_hierarchical.py``).
 from __future__ import annotations
 
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -637,22 +636,17 @@ class HierarchicalRadiosity:
         H = np.einsum("mi,mic->mc", quadratic.basis(lam), self.H6[row])
         return nd.E[leaf] + nd.rho[leaf] * H
 
-    @contextmanager
-    def _scratch(self):
-        """Pull and gather other radiosity than the solution's, then put the trees back."""
+    def _gather_of(self, B: np.ndarray) -> np.ndarray:
+        """H6 (leaves, 6, 3) that the links gather from the leaves' radiosity ``B`` (pulled up
+        the trees in place of the solution's, which is put back)."""
+        leaves = self.leaf_ids
         saved = (self.Bn, self.Bopen, self.Bgap, self.Brange, self.table)
         self.Bn, self.Bopen, self.Bgap, self.Brange = (a.copy() for a in saved[:4])
         try:
-            yield
-        finally:
-            self.Bn, self.Bopen, self.Bgap, self.Brange, self.table = saved
-
-    def _gather_of(self, B: np.ndarray) -> np.ndarray:
-        """H6 (leaves, 6, 3) that the links gather from the leaves' radiosity ``B``."""
-        leaves = self.leaf_ids
-        with self._scratch():
             self._pull(leaves, self._ancestors(leaves), B, self.contacts.gap_share(leaves))
             return self._gather(leaves, self._push_plan())
+        finally:
+            self.Bn, self.Bopen, self.Bgap, self.Brange, self.table = saved
 
     def _emission_gather(self) -> np.ndarray:
         """H6 (leaves, 6, 3) of the emitters' own light alone, over the same links (the part
