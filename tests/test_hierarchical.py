@@ -565,3 +565,37 @@ def test_every_source_in_a_closed_room_has_its_light_delivered():
     A = hr.nodes.area[hr.leaf_ids]
     assert np.allclose(total, (hr.H * A[:, None]).sum(axis=0), rtol=1e-9)
     assert np.array_equal(hr.result(corners=False).result.B, before)
+
+
+def test_a_near_cluster_link_brings_no_more_than_its_bound():
+    """A cluster link whose ends are too close for the one-disc kernel (spheres overlapping, as
+    between a column's slender triangles and its neighbours') is kept when all the light its
+    source could bring is within epsilon: 1 / (pi gap^2) per unit power / pi sent, gap the
+    distance between the ends' bounding boxes. Checked against Lambert's closed form: the
+    unoccluded irradiance at points of every receiving triangle from every sending triangle
+    (B = 1) never passes area(S) / (pi gap^2), nor does the link's own estimate."""
+    columns = [q for k in range(5) for a, u, v in closed_box((0.7 * k, 0, 0), (0.7 * k + 0.15, 0.15, 3), False)[1:]
+               for q in tiled(a, u, v, 1)]
+    floor = tiled((-1, -1, 0), (5, 0, 0), (0, 3, 0), 3)
+    hr = HierarchicalRadiosity(build([(columns, 0.5, 0.0), (floor, 0.5, 1.0)]), HierarchicalSettings())
+    nd, ev = hr.nodes, hr.evaluator
+    s, r = (a.ravel() for a in np.meshgrid(np.arange(hr.size0), np.arange(hr.size0)))
+    pick = (s != r) & (nd.cluster[s] | nd.cluster[r])
+    L = ev._clusters(s[pick], r[pick])
+    near = np.flatnonzero(L.near & np.isfinite(L.spread))
+    assert len(near) > 200 and (L.near & ~np.isfinite(L.spread)).any()
+    inner = np.array([[0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 0.2, 0.6], [0.98, 0.01, 0.01]])
+    w = nd.center[L.rcv] - nd.center[L.src]
+    shown = ev._shown_area(L.src, w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300), L.d, L.dw)
+    small = near[ev.size(L.src[near]) * ev.size(L.rcv[near]) <= 64]
+    assert len(small) > 200
+    for i in np.random.default_rng(1).choice(small, 200, replace=False):
+        ts, _ = ev._members(L.src[i:i + 1], ev.size(L.src[i:i + 1]))
+        tr, nr = ev._members(L.rcv[i:i + 1], ev.size(L.rcv[i:i + 1]))
+        x = np.einsum("pk,tkc->tpc", inner, tr).reshape(-1, 3)
+        n = np.repeat(nr, len(inner), axis=0)
+        got = np.array([sum(point_to_polygon(p, m, t) for t in ts) for p, m in zip(x, n)])
+        bound = L.spread[i] * nd.area[L.src[i]]
+        assert got.max() <= bound * (1 + 1e-9), (i, got.max(), bound)
+        own = L.coef[i, 0] * (shown[i] if nd.cluster[L.src[i]] else 1.0)
+        assert own <= bound * (1 + 1e-9)

@@ -68,14 +68,15 @@ class Links:
     d: np.ndarray          # (L, 3) table directions around the direction of travel S -> R
     dw: np.ndarray         # (L, 3) their weights (``nodes.direction_weights``)
     vis: np.ndarray        # visible share of the transfer (F-weighted over R's points; cluster links: V)
+    near: np.ndarray       # a cluster link between ends too close for its kernel: spread is 1 / (pi gap^2)
 
-    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw", "vis")
+    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw", "vis", "near")
 
     @classmethod
     def empty(cls) -> "Links":
         z = np.zeros(0)
         return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z, np.zeros((0, 3), np.int64),
-                   np.zeros((0, 3)), z)
+                   np.zeros((0, 3)), z, z.astype(bool))
 
     @property
     def mean(self) -> np.ndarray:
@@ -242,7 +243,7 @@ class Evaluator:
         # S shows): the unoccluded F bounds the light at stake
         occluded = np.where(((V < 1) & (F0 > 0)).any(axis=1), F0[:, :6] @ quadratic.MEAN, 0.0)
         vis = F.sum(axis=1) / np.maximum(F0.sum(axis=1), 1e-300)
-        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r), vis)
+        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r), vis, np.zeros(len(s), bool))
         return links.take(F0.max(axis=1) > 0)
 
     def _visible_from_points(self, x: np.ndarray, n_r: np.ndarray, tri_s: np.ndarray, n_s: np.ndarray,
@@ -292,15 +293,34 @@ class Evaluator:
         behind = (side_s < -nd.radius[r]) | (side_r < -nd.radius[s])
         clear = (side_s > nd.radius[r]) & (side_r > nd.radius[s])
         far = (dist > reach) & clear
-        s, r, w, dist, geo, far, reach = (a[~behind] for a in (s, r, w, dist, geo, far, reach))
-        V = np.ones(len(s))                       # near or across: refined, nothing carried yet
+        s, r, w, dist, geo, far = (a[~behind] for a in (s, r, w, dist, geo, far))
+        V = np.ones(len(s))                       # near or across: cast only if kept (``see``)
         V[far] = self._visible_between(s[far], r[far])
         d, dw = direction_weights(w)
-        free = np.where(far, geo / (np.pi * np.maximum(dist ** 2, 1e-300) + self._shown_area(s, w, d, dw)), 0.0)
-        spread = np.where(far, reach / np.maximum(dist, 1e-300) + DIRECTION_ERROR, np.inf)   # near or across: refine
-        links = Links(s, r, np.repeat((V * free)[:, None], 6, axis=1), spread, np.where(V < 1, free, 0.0),
-                      d, dw, V)
-        return links
+        free = geo / (np.pi * np.maximum(dist ** 2, 1e-300) + self._shown_area(s, w, d, dw))
+        with np.errstate(divide="ignore"):
+            bound = 1.0 / (np.pi * self.gap(s, r) ** 2)                   # inf where the boxes touch
+        spread = np.where(far, (nd.radius[s] + nd.radius[r]) / np.maximum(dist, 1e-300) + DIRECTION_ERROR, bound)
+        return Links(s, r, np.repeat((V * free)[:, None], 6, axis=1), spread, np.where(V < 1, free, 0.0),
+                     d, dw, V, ~far)
+
+    def gap(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Distance (L,) between the ends' bounding boxes (0 where they overlap): no point of
+        one is nearer the other, so 1 / (pi gap^2) bounds the irradiance a point of R gets per
+        unit power / pi that S sends, however S and R lie (``HierarchicalRadiosity.errors``)."""
+        nd = self.nodes
+        apart = np.maximum(np.maximum(nd.lo[r] - nd.hi[s], nd.lo[s] - nd.hi[r]), 0.0)
+        return np.linalg.norm(apart, axis=1)
+
+    def see(self, L: Links, which: np.ndarray) -> Links:
+        """The near links ``which`` of L with their visibility cast (kept ones only: most
+        near links are refined, and their rays would be thrown away)."""
+        i = np.flatnonzero(which)
+        if len(i):
+            V = self._visible_between(L.src[i], L.rcv[i])
+            L.coef[i] *= V[:, None]
+            L.vis[i] = V
+        return L
 
     def _shown_area(self, s: np.ndarray, w: np.ndarray, d: np.ndarray, dw: np.ndarray) -> np.ndarray:
         """The area each source shows along w (A max(0, n.w); a cluster's read from its table)."""

@@ -72,7 +72,8 @@ class Nodes:
     """Clusters and elements of one scene (see module docstring).
 
     Per node: ``cluster`` flag, ``parent``, ``first_child`` (-1: none yet), ``n_children``,
-    ``center`` and ``radius`` of a bounding sphere, ``area``; per element: its corners
+    ``center`` and ``radius`` of a bounding sphere, ``lo`` and ``hi`` corners of a bounding
+    box, ``area``; per element: its corners
     ``tri`` (3, 3), vertex ids ``vids`` into ``vertices``, ``normal``, the input triangle
     ``root``, ``level`` below it, ``path`` (its child slots from the root, base 4), and
     ``E`` (exitance, own emission plus the reflected light of ``external``), ``H_ext``
@@ -89,7 +90,7 @@ class Nodes:
         self.size = 0
         self._arrays = {
             "cluster": (bool, ()), "parent": (np.int64, ()), "first_child": (np.int64, ()),
-            "n_children": (np.int64, ()), "center": (float, (3,)), "radius": (float, ()),
+            "n_children": (np.int64, ()), "center": (float, (3,)), "radius": (float, ()), "lo": (float, (3,)), "hi": (float, (3,)),
             "area": (float, ()), "tri": (float, (3, 3)), "vids": (np.int64, (3,)), "normal": (float, (3,)),
             "root": (np.int64, ()), "level": (np.int64, ()), "path": (np.int64, ()), "E": (float, (3,)),
             "H_ext": (float, (3,)), "H_spread": (float, ()), "rho": (float, (3,)),
@@ -158,6 +159,7 @@ class Nodes:
         c = tri.mean(axis=1)
         self.center[ids] = c
         self.radius[ids] = np.linalg.norm(tri - c[:, None], axis=-1).max(axis=1)
+        self.lo[ids], self.hi[ids] = tri.min(axis=1), tri.max(axis=1)
 
     def _cluster_extents(self):
         """Bounding spheres, areas, most reflective channel and projected-area tables of clusters."""
@@ -187,6 +189,7 @@ class Nodes:
             node = self.parent[node]
             keep = node >= 0
             node, t = node[keep], t[keep]
+        self.lo[clusters], self.hi[clusters] = lo, hi
         self.center[clusters] = (lo + hi) / 2
         self.radius[clusters] = np.linalg.norm(hi - lo, axis=1) / 2
         self.cluster_depth = np.zeros(k, np.int64)

@@ -37,6 +37,8 @@ MAX_LINKS = 20_000_000
 #: Clusters of at most this many input triangles send and take light by each triangle's own
 #: cosine to a link's direction (``ClusterMaps``); larger ones by the direction table.
 EXACT_CLUSTER = 256
+#: (link, triangle) entries of ``ClusterMaps`` made per batch (bounds the temporary memory).
+MAP_BATCH = 1_000_000
 #: Fraction of the way from a result vertex to its leaves' centroids where emitters' light is taken.
 CORNER_INSET = 0.01
 #: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
@@ -91,49 +93,59 @@ class ClusterMaps:
     def of(cls, evaluator, L: Links) -> "ClusterMaps":
         from scipy.sparse import csr_matrix
 
-        nodes, span = evaluator.nodes, evaluator.span
-        sc = nodes.scene
+        nodes = evaluator.nodes
         w = nodes.center[L.rcv] - nodes.center[L.src]
         dist = np.linalg.norm(w, axis=1)
         w /= np.maximum(dist, 1e-300)[:, None]
-
-        def members(ends):
-            links = np.flatnonzero(nodes.cluster[ends])           # clusters are the first nodes: in span
-            lo, hi = span[ends[links]].T
-            small = hi - lo <= EXACT_CLUSTER
-            links = links[small]
-            pos, at = ranges(lo[small], (hi - lo)[small])
-            t = nodes.order[at]
-            return links, pos, t, np.einsum("ij,ij->i", sc.normals[t], w[links][pos])
-
-        send, pos, t, cos = members(L.src)
-        shown = sc.areas[t] * np.maximum(cos, 0.0)
-        i = send[pos]
-        er = np.flatnonzero(~nodes.cluster[L.rcv[i]])
-        if len(er):
-            # into an element: each triangle by its own closed form at the receiver's centre
-            # (the link's coefficient is V geo / (pi d^2 + A_proj); this entry undoes that)
-            j, r = i[er], L.rcv[i[er]]
-            geo = np.maximum(-np.einsum("ij,ij->i", nodes.normal[r], w[j]), 0.0)
-            whole = np.pi * dist[j] ** 2 + evaluator._shown_area(L.src[j], w[j], L.d[j], L.dw[j])
-            x = nodes.center[r] + evaluator.caster.epsilon * nodes.normal[r]
-            F = polygon_factor(x[:, None], nodes.normal[r], sc.vertices[sc.triangles[t[er]]])[:, 0]
-            shown[er] = np.where(geo > 0, F * whole / np.maximum(geo, 1e-300), 0.0)
-        S = csr_matrix((shown, (pos, t)), shape=(len(send), sc.n))
-        take, pos, t, cos = members(L.rcv)
-        taken = np.maximum(-cos, 0.0)
-        i = take[pos]
-        es = np.flatnonzero(~nodes.cluster[L.src[i]])
-        if len(es):
-            # from an element: each triangle takes the closed form from its centroid
-            j, e = i[es], L.src[i[es]]
-            shown_e = nodes.area[e] * np.maximum(np.einsum("ij,ij->i", nodes.normal[e], w[j]), 0.0)
-            whole = np.pi * dist[j] ** 2 + shown_e
-            x = evaluator.centroids[t[es]] + evaluator.caster.epsilon * sc.normals[t[es]]
-            F = polygon_factor(x[:, None], sc.normals[t[es]], nodes.tri[e])[:, 0]
-            taken[es] = np.where(shown_e > 0, F * whole / np.maximum(shown_e, 1e-300), 0.0)
-        R = csr_matrix((taken, (t, pos)), shape=(sc.n, len(take)))
+        n = nodes.scene.n
+        # the link's kernel is V geo / (pi d^2 + A_proj): an entry by a closed form undoes it
+        geo = np.maximum(-np.einsum("ij,ij->i", nodes.normal[L.rcv], w), 0.0)
+        send, (link, t, v) = _member_entries(evaluator, L, w, True, (np.pi * dist ** 2 + evaluator._shown_area(
+            L.src, w, L.d, L.dw)) / np.maximum(geo, 1e-300) * (geo > 0))
+        S = csr_matrix((v, (link, t)), shape=(len(send), n))
+        shown = nodes.area[L.src] * np.maximum(np.einsum("ij,ij->i", nodes.normal[L.src], w), 0.0)
+        take, (link, t, v) = _member_entries(evaluator, L, w, False,
+                                             (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0))
+        R = csr_matrix((v, (t, link)), shape=(n, len(take)))
         return cls(L, send, S, take, R)
+
+
+def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray):
+    """The links of L whose sending (or taking) end is a small cluster, and per (link, input
+    triangle of that end) the share of the link's light: A max(0, n.w) sent, max(0, -n.w)
+    taken; where the other end is an element, the triangle's closed form to it (sending:
+    from the element's centre to the triangle; taking: from the triangle's centroid to the
+    element) times ``undo``, the link's kernel over its cosine. In batches of
+    ``MAP_BATCH`` entries (a large scene has tens of millions)."""
+    nodes, span = evaluator.nodes, evaluator.span
+    sc, eps = nodes.scene, evaluator.caster.epsilon
+    ends, other = (L.src, L.rcv) if sending else (L.rcv, L.src)
+    links = np.flatnonzero(nodes.cluster[ends])                 # clusters are the first nodes: in span
+    lo, hi = span[ends[links]].T
+    small = hi - lo <= EXACT_CLUSTER
+    links, lo, count = links[small], lo[small], (hi - lo)[small]
+    rows, tris, vals = [], [], []
+    first = 0
+    while first < len(links):
+        last = max(first + 1, int(np.searchsorted(np.cumsum(count[first:]), MAP_BATCH)) + first)
+        pos, at = ranges(lo[first:last], count[first:last])
+        t, j = nodes.order[at], links[first:last][pos]
+        cos = np.einsum("ij,ij->i", sc.normals[t], w[j])
+        v = sc.areas[t] * np.maximum(cos, 0.0) if sending else np.maximum(-cos, 0.0)
+        el = np.flatnonzero(~nodes.cluster[other[j]])
+        if len(el):
+            e, te = other[j[el]], t[el]
+            if sending:
+                x, normal, poly = nodes.center[e] + eps * nodes.normal[e], nodes.normal[e], sc.vertices[sc.triangles[te]]
+            else:
+                x, normal, poly = evaluator.centroids[te] + eps * sc.normals[te], sc.normals[te], nodes.tri[e]
+            v[el] = polygon_factor(x[:, None], normal, poly)[:, 0] * undo[j[el]]
+        rows.append(pos + first)
+        tris.append(t)
+        vals.append(v)
+        first = last
+    cat = (lambda parts, dtype: np.concatenate(parts) if parts else np.zeros(0, dtype))
+    return links, (cat(rows, np.int64), cat(tris, np.int64), cat(vals, float))
 
 
 @dataclass
@@ -316,13 +328,27 @@ class HierarchicalRadiosity:
             f = np.maximum(L.spread[ee], L.occluded[ee])
             e = rho[ee] * (term[ee] * f[:, None] + (self.Brange[src[ee]] * g)[:, None])
             err[ee] = e.max(axis=1)
-        o = ~ee
+        o = ~ee & ~L.near
         if o.any():
+            f = L.coef[o, 0] * L.spread[o] + L.occluded[o]
+            err[o] = (rho[o] * term[o] * f[:, None]).max(axis=1)
+        o = L.near
+        if o.any():
+            # ends too close for the kernel: all the light S could bring R (infinite where
+            # their boxes touch, whatever S sends)
             with np.errstate(invalid="ignore"):
-                f = L.coef[o, 0] * L.spread[o] + L.occluded[o]
-            err[o] = np.where(np.isfinite(L.spread[o]), (rho[o] * term[o] * np.nan_to_num(f)[:, None]).max(axis=1),
-                              np.inf)
+                e = (rho[o] * self._flux(L.src[o]) * L.spread[o, None]).max(axis=1)
+            err[o] = np.where(np.isfinite(L.spread[o]), e, np.inf)
         return err
+
+    def _flux(self, src: np.ndarray) -> np.ndarray:
+        """Power / pi (sum of B A over its triangles, W per channel) each source sends, the
+        most of its open part and its part in a gap."""
+        nd = self.nodes
+        out = nd.area[src, None] * np.maximum(self.Bopen[src], self.Bgap[src])
+        cs = nd.cluster[src]
+        out[cs] = self.flux[src[cs]]
+        return out
 
     def _source_term(self, L: Links, bound: bool = False) -> np.ndarray:
         """B of an element source (of its part in a gap for a receiver in that gap, else of
@@ -390,6 +416,7 @@ class HierarchicalRadiosity:
                 src, rcv = src[:REFINE_CHUNK], rcv[:REFINE_CHUNK]
             L = self.evaluator.evaluate(src, rcv)
             need, split_src = self._to_refine(L)
+            self.evaluator.see(L, ~need & L.near)
             kept.append(L.take(~need & (L.coef.max(axis=1) > 0)))
             total += int((~need).sum())
             if total > MAX_LINKS:
@@ -479,10 +506,13 @@ class HierarchicalRadiosity:
         table = np.zeros((self.size0, len(DIRECTIONS), 3))
         roots = nd.element_root
         table[roots] = self.proj_root[:, :, None] * self.Bopen[roots][:, None, :]
+        flux = np.zeros((self.size0, 3))
+        flux[roots] = nd.area[roots, None] * self.Bopen[roots]
         for level in reversed(self.by_depth):
             first = nd.first_child[level]
             table[level] = table[first] + table[first + 1]
-        self.table = table
+            flux[level] = flux[first] + flux[first + 1]
+        self.table, self.flux = table, flux
 
     def _push_plan(self) -> list:
         """Per element level below the input triangles: (elements, parents, child slots)."""
