@@ -414,6 +414,28 @@ def test_a_lamp_in_a_furnished_room_delivers_all_its_light():
     assert np.all(np.abs(r.result.escaped) < 0.05 * r.result.emitted)
 
 
+def test_cluster_maps_carried_over_rounds_equal_maps_made_afresh(monkeypatch):
+    """After the first round only the new links get their per-triangle maps (``ClusterMaps.
+    extended``); the maps so carried through the rounds are those made from all the links."""
+    from radtr_addon.hierarchical.solve import ClusterMaps
+
+    room = [q for a, u, v in closed_box((0, 0, 0), (5, 4, 2.7), inward=True) for q in tiled(a, u, v, 3)]
+    boxes = [q for a, u, v in closed_box((1, 3.4, 0), (2, 3.9, 2), inward=False) for q in tiled(a, u, v, 2)]
+    lamp = [[(2.2, 1.7, 2.3), (2.2, 2.3, 2.3), (2.8, 2.3, 2.3), (2.8, 1.7, 2.3)]]
+    made, of = [], ClusterMaps.of
+    monkeypatch.setattr(ClusterMaps, "of", classmethod(lambda cls, ev, L: made.append(len(L)) or of(ev, L)))
+    hr, _ = run(build([(room, 0.5, 0.0), (boxes, 0.5, 0.0), (lamp, 0.0, 10.0)]), quality=0.1)
+    assert len(hr.rounds) >= 3 and made[0] == hr.rounds[0]["links"]
+    assert all(n < r["links"] for n, r in zip(made[1:], hr.rounds[1:]))
+    fresh, carried = of(hr.evaluator, hr.links), hr._cluster_maps()
+    assert carried.links is hr.links and len(carried.send) > 100 and len(carried.take) > 100
+    for a, b in ((carried.send, fresh.send), (carried.take, fresh.take)):
+        assert np.array_equal(np.sort(a), np.sort(b))
+    for M, F, ends, f_ends in ((carried.S, fresh.S, carried.send, fresh.send),
+                               (carried.RT, fresh.RT, carried.take, fresh.take)):
+        assert abs(M[np.argsort(ends)] - F[np.argsort(f_ends)]).max() < 1e-12
+
+
 def test_a_closed_room_keeps_its_light_through_cluster_links():
     """A closed grey room of 4 x 4 tiles a face lit by one ceiling tile, nothing in it: every
     watt that leaves a surface lands on one (escaped under 1% of the emitted), though a

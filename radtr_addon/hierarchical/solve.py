@@ -76,7 +76,8 @@ class ClusterMaps:
     18 degrees apart sees a face head-on as cos 18 = 0.95 of itself, once at each end, and a
     closed room lost 4% of its light through cluster links. ``S`` (sending links x input
     triangles): A max(0, n.w) along each link ``send``; ``R`` (input triangles x taking
-    links): max(0, -n.w), how much of each link ``take`` a triangle of its receiver gets.
+    links, held transposed): max(0, -n.w), how much of each link ``take`` a triangle of its
+    receiver gets.
     Between a small cluster and an element, each triangle goes by its own closed form
     (``links.polygon_factor``: from the element's centre to the triangle, or from the
     triangle's centroid to the element), scaled to undo the link's one-disc kernel: as one
@@ -87,7 +88,7 @@ class ClusterMaps:
     send: np.ndarray
     S: object
     take: np.ndarray
-    R: object
+    RT: object             # R transposed (taking links x input triangles)
 
     @classmethod
     def of(cls, evaluator, L: Links) -> "ClusterMaps":
@@ -106,8 +107,23 @@ class ClusterMaps:
         shown = nodes.area[L.src] * np.maximum(np.einsum("ij,ij->i", nodes.normal[L.src], w), 0.0)
         take, (link, t, v) = _member_entries(evaluator, L, w, False,
                                              (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0))
-        R = csr_matrix((v, (t, link)), shape=(n, len(take)))
-        return cls(L, send, S, take, R)
+        RT = csr_matrix((v, (link, t)), shape=(len(take), n))
+        return cls(L, send, S, take, RT)
+
+    def extended(self, evaluator, keep: np.ndarray, new: Links, links: Links) -> "ClusterMaps":
+        """The maps of ``links`` = the links of these maps where ``keep``, then ``new``: the
+        kept rows are reused (a large scene's later rounds refine a few links of millions,
+        and its maps took a minute to make)."""
+        from scipy.sparse import vstack
+
+        at = np.cumsum(keep) - 1                                  # where a kept link lands
+        more = ClusterMaps.of(evaluator, new)
+        held = int(keep.sum())
+        ks, kt = keep[self.send], keep[self.take]
+        return ClusterMaps(links, np.concatenate([at[self.send[ks]], more.send + held]),
+                           vstack([self.S[ks], more.S], format="csr"),
+                           np.concatenate([at[self.take[kt]], more.take + held]),
+                           vstack([self.RT[kt], more.RT], format="csr"))
 
 
 def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray):
@@ -541,7 +557,7 @@ class HierarchicalRadiosity:
         if len(maps.take):                                       # small clusters: by each triangle's cosine
             cr = cr.copy()
             cr[maps.take] = False
-            H_root = maps.R @ (L.coef[maps.take, :1] * term[maps.take])
+            H_root = maps.RT.T @ (L.coef[maps.take, :1] * term[maps.take])
         if cr.any():
             idx = (L.rcv[cr, None] * k + L.d[cr]).ravel()
             val = (L.dw[cr, :, None] * (L.coef[cr, :1] * term[cr])[:, None, :]).reshape(-1, 3)
@@ -607,7 +623,10 @@ class HierarchicalRadiosity:
         src, rcv = expand(nd, L.src, L.rcv, split_src)
         unchanged = self.links.take(~need)
         new = yield from self.refine(src, rcv, held=len(unchanged))
-        return Links.concat([unchanged, new]), int(need.sum())
+        links = Links.concat([unchanged, new])
+        if getattr(self, "_maps", None) is not None and self._maps.links is self.links:
+            self._maps = self._maps.extended(self.evaluator, ~need, new, links)
+        return links, int(need.sum())
 
     def step(self, count: int = 1, cancel=None) -> bool:
         """One slice of a refine-solve round (whatever ``count``): a slice of the refine
