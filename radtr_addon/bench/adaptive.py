@@ -1,7 +1,7 @@
 """``bench adaptive``: uniform patches against hierarchical radiosity, both against Cycles.
 
-For the bundled ``cornell_box`` and ``furnished_room`` (the ``atrium`` is left out: its first
-hierarchical round does not end in minutes yet) and each configuration (uniform Embree
+For the bundled ``cornell_box`` and ``furnished_room`` (the ``atrium`` is left out: its
+hierarchical solve takes about 10 minutes at Quality 0.1, and its bakes longer) and each configuration (uniform Embree
 patches with Jacobi at two patch counts; hierarchical at several Quality values): a solve
 as a user runs it (``pipeline.solve``, result meshes written), then a Cycles bake at the
 vertices of those result meshes (``REFERENCE_SPP`` samples; emitters left out) as the

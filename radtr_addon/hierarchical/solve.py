@@ -374,7 +374,8 @@ class HierarchicalRadiosity:
         directions (``bound``: the largest of them, for the error estimate)."""
         nd = self.nodes
         cs = nd.cluster[L.src]
-        term = np.where(self.contacts.in_gap(L.src, L.rcv)[:, None], self.Bgap[L.src], self.Bopen[L.src])
+        in_gap = self._element_gather()[0] if L is self.links else self.contacts.in_gap(L.src, L.rcv)
+        term = np.where(in_gap[:, None], self.Bgap[L.src], self.Bopen[L.src])
         if cs.any():
             corners = self.table[L.src[cs, None], L.d[cs]]                 # (c, 3 directions, 3)
             term[cs] = corners.max(axis=1) if bound else np.einsum("cj,cjk->ck", L.dw[cs], corners)
@@ -388,6 +389,22 @@ class HierarchicalRadiosity:
         if getattr(self, "_maps", None) is None or self._maps.links is not self.links:
             self._maps = ClusterMaps.of(self.evaluator, self.links)
         return self._maps
+
+    def _element_gather(self) -> tuple[np.ndarray, np.ndarray, object]:
+        """Of the current links, made once a round instead of once a sweep: which take the
+        light of their source's part in a gap (``contacts.in_gap``), the links into elements,
+        and G (6 x nodes, those links): their coefficients at the receivers' quadratic nodes."""
+        from scipy.sparse import csr_matrix
+
+        nd, L = self.nodes, self.links
+        made = getattr(self, "_gathering", None)
+        if made is None or made[0] is not L or made[1] != nd.size:
+            er = np.flatnonzero(~nd.cluster[L.rcv])
+            rows = (L.rcv[er, None] * 6 + np.arange(6)).ravel()
+            G = csr_matrix((L.coef[er].ravel(), (rows, np.repeat(np.arange(len(er)), 6))),
+                           shape=(6 * nd.size, len(er)))
+            self._gathering = made = (L, nd.size, self.contacts.in_gap(L.src, L.rcv), er, G)
+        return made[2:]
 
     # -- refinement ----------------------------------------------------------------------
     def _to_refine(self, L: Links) -> tuple[np.ndarray, np.ndarray]:
@@ -544,13 +561,9 @@ class HierarchicalRadiosity:
         pushed down: from clusters by direction to their triangles, then down each element tree."""
         nd, L = self.nodes, self.links
         term = self._source_term(L)
+        _, er, G = self._element_gather()
+        H = np.asarray(G @ term[er]).reshape(nd.size, 6, 3)
         cr = nd.cluster[L.rcv]
-        er = ~cr
-        n = nd.size
-        idx = (L.rcv[er, None] * 6 + np.arange(6)).ravel()
-        val = (L.coef[er, :, None] * term[er, None, :]).reshape(-1, 3)
-        H = np.stack([np.bincount(idx, weights=val[:, c], minlength=6 * n) for c in range(3)], axis=1)
-        H = H.reshape(n, 6, 3).astype(float)                     # (bincount of nothing is int)
         k = len(DIRECTIONS)
         D = np.zeros((self.size0 * k, 3))
         maps = self._cluster_maps()
