@@ -90,7 +90,8 @@ class Nodes:
         self.size = 0
         self._arrays = {
             "cluster": (bool, ()), "parent": (np.int64, ()), "first_child": (np.int64, ()),
-            "n_children": (np.int64, ()), "center": (float, (3,)), "radius": (float, ()), "lo": (float, (3,)), "hi": (float, (3,)),
+            "n_children": (np.int64, ()), "center": (float, (3,)), "radius": (float, ()),
+            "lo": (float, (3,)), "hi": (float, (3,)),
             "area": (float, ()), "tri": (float, (3, 3)), "vids": (np.int64, (3,)), "normal": (float, (3,)),
             "root": (np.int64, ()), "level": (np.int64, ()), "path": (np.int64, ()), "E": (float, (3,)),
             "H_ext": (float, (3,)), "H_spread": (float, ()), "rho": (float, (3,)),

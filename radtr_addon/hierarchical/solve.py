@@ -152,7 +152,8 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
         if len(el):
             e, te = other[j[el]], t[el]
             if sending:
-                x, normal, poly = nodes.center[e] + eps * nodes.normal[e], nodes.normal[e], sc.vertices[sc.triangles[te]]
+                x, normal = nodes.center[e] + eps * nodes.normal[e], nodes.normal[e]
+                poly = sc.vertices[sc.triangles[te]]
             else:
                 x, normal, poly = evaluator.centroids[te] + eps * sc.normals[te], sc.normals[te], nodes.tri[e]
             v[el] = polygon_factor(x[:, None], normal, poly)[:, 0] * undo[j[el]]
@@ -160,8 +161,9 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
         tris.append(t)
         vals.append(v)
         first = last
-    cat = (lambda parts, dtype: np.concatenate(parts) if parts else np.zeros(0, dtype))
-    return links, (cat(rows, np.int64), cat(tris, np.int64), cat(vals, float))
+    if not rows:
+        return links, (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    return links, (np.concatenate(rows), np.concatenate(tris), np.concatenate(vals))
 
 
 @dataclass
