@@ -22,7 +22,9 @@ emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the mis
 quadratic at R's check points (or a quarter of F's spread over R if more, or the unoccluded
 F where any shadow ray was blocked: a shadow boundary may cross R); cluster links rho_R B_S
 (F x the ends' angular size seen across the link + the unoccluded F where any ray was
-blocked). A link from a source with a surface close in front of part of it that is seen
+blocked); near cluster links (the ends' spheres overlap, or one straddles an element's
+plane: the kernel does not hold) all the light S could bring, rho_R sum(B A) over S /
+(pi gap^2), ``Evaluator.gap``. A link from a source with a surface close in front of part of it that is seen
 only in part (``vis`` below 1) is refined at the source where the spread of its B matters
 (``solve``). A link over the bound is replaced by the links of the children of its larger
 end; a link whose ends cannot split further is kept.
