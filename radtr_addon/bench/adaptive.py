@@ -1,8 +1,9 @@
 """``bench adaptive``: uniform patches against hierarchical radiosity, both against Cycles.
 
 For the bundled ``cornell_box`` and ``furnished_room`` (the ``atrium`` is left out: its
-hierarchical solve takes about 10 minutes at Quality 0.1, and its bakes longer) and each configuration (uniform Embree
-patches with Jacobi at two patch counts; hierarchical at several Quality values): a solve
+hierarchical solve takes about 10 minutes at Quality 0.1, and its bakes longer) and each
+configuration (uniform Embree patches with Jacobi at two patch counts; hierarchical at
+several Quality values): a solve
 as a user runs it (``pipeline.solve``, result meshes written), then a Cycles bake at the
 vertices of those result meshes (``REFERENCE_SPP`` samples; emitters left out) as the
 reference. Table ``adaptive``: leaves, links (and n^2, the uniform matrix), seconds, the

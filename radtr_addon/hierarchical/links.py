@@ -24,9 +24,9 @@ F where any shadow ray was blocked: a shadow boundary may cross R); cluster link
 (F x the ends' angular size seen across the link + the unoccluded F where any ray was
 blocked); near cluster links (the ends' spheres overlap, or one straddles an element's
 plane: the kernel does not hold) all the light S could bring, rho_R sum(B A) over S /
-(pi gap^2), ``Evaluator.gap``. A link from a source with a surface close in front of part of it that is seen
-only in part (``vis`` below 1) is refined at the source where the spread of its B matters
-(``solve``). A link over the bound is replaced by the links of the children of its larger
+(pi gap^2), ``Evaluator.gap``. A link from a source with a surface close in front of part
+of it that is seen only in part (``vis`` below 1) is refined at the source where the
+spread of its B matters (``solve``). A link over the bound is replaced by the links of the children of its larger
 end; a link whose ends cannot split further is kept.
 """
 from __future__ import annotations
@@ -314,15 +314,14 @@ class Evaluator:
         apart = np.maximum(np.maximum(nd.lo[r] - nd.hi[s], nd.lo[s] - nd.hi[r]), 0.0)
         return np.linalg.norm(apart, axis=1)
 
-    def see(self, L: Links, which: np.ndarray) -> Links:
-        """The near links ``which`` of L with their visibility cast (kept ones only: most
-        near links are refined, and their rays would be thrown away)."""
+    def see(self, L: Links, which: np.ndarray):
+        """Cast the visibility of the near links ``which`` of L, in place (kept ones only:
+        most near links are refined, and their rays would be thrown away)."""
         i = np.flatnonzero(which)
         if len(i):
             V = self._visible_between(L.src[i], L.rcv[i])
             L.coef[i] *= V[:, None]
             L.vis[i] = V
-        return L
 
     def _shown_area(self, s: np.ndarray, w: np.ndarray, d: np.ndarray, dw: np.ndarray) -> np.ndarray:
         """The area each source shows along w (A max(0, n.w); a cluster's read from its table)."""
