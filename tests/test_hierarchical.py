@@ -42,13 +42,17 @@ def build(parts):
 
 
 def test_white_furnace_is_uniform_and_keeps_its_light():
+    """The closed unit cube, E = 1, rho = 0.5 everywhere: B = E / (1 - rho) = 2 within 1.2% RMS
+    (0.8%; 1.5% with each link's mean over its receiver from the quadratic's three points) and
+    8% at any leaf (6.6% on the finest leaves along the cube's edges), and what leaves the
+    surfaces is received by them within 1% (0.1%; 2.1% lost before)."""
     hr, r = run(cube(1.0), quality=0.01)
     B = r.result.B[:, 0]
     A = r.leaves.areas
     rms = np.sqrt((A * (B / 2.0 - 1) ** 2).sum() / A.sum())
-    assert rms < 0.02 and np.abs(B / 2.0 - 1).max() < 0.06       # E / (1 - rho) = 2
+    assert rms < 0.012 and np.abs(B / 2.0 - 1).max() < 0.08
     # closed box: what leaves the surfaces is received by them (the books, from B and H alone)
-    assert abs(r.result.escaped[0]) < 0.03 * r.result.emitted[0]
+    assert abs(r.result.escaped[0]) < 0.01 * r.result.emitted[0]
     assert r.result.balance_error() < 1e-3
 
 
@@ -471,14 +475,16 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
 
 def test_a_black_lamp_under_a_ceiling_keeps_the_books():
     """A closed grey room lit by a black (rho 0) lamp facing up 30 cm under the ceiling: the
-    light leaving the surfaces lands on them (escaped under 1% of the emitted). The hot ceiling
-    over the lamp sends much of its light back into the lamp; with links weighed by the
-    receiver's reflectance alone those into the black lamp were never refined, and 15% of the
-    light was in no book."""
+    light leaving the surfaces lands on them (escaped under 2% of the emitted: 1.4%, of which
+    about 0.6% is light that reaches the lamp's one-sided back, blocked and so in escaped;
+    0.7% before each link's mean was taken by a degree-6 rule, when the lamp gained 1% that
+    the walls lost). The hot ceiling over the lamp sends much of its light back into the
+    lamp; with links weighed by the receiver's reflectance alone those into the black lamp
+    were never refined, and 15% of the light was in no book."""
     room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 1)]
     lamp = [[(1.7, 1.7, 2.2), (2.3, 1.7, 2.2), (2.3, 2.3, 2.2), (1.7, 2.3, 2.2)]]       # faces up
     _, r = run(build([(room, 0.7, 0.0), (lamp, 0.0, 20.0)]), quality=0.1)
-    assert np.all(np.abs(r.result.escaped) < 0.01 * r.result.emitted)
+    assert np.all(np.abs(r.result.escaped) < 0.02 * r.result.emitted)
 
 
 def test_a_two_sided_lamp_does_not_cover_the_ceiling_over_it():
@@ -621,3 +627,22 @@ def test_a_near_cluster_link_brings_no_more_than_its_bound():
         assert got.max() <= bound * (1 + 1e-9), (i, got.max(), bound)
         own = L.coef[i, 0] * (shown[i] if nd.cluster[L.src[i]] else 1.0)
         assert own <= bound * (1 + 1e-9)
+
+
+def test_the_walls_of_an_empty_room_deliver_their_light():
+    """An empty closed 5 x 4 x 2.7 m grey room of one quad a face, lit by a lamp facing down
+    1 cm under the ceiling, Quality 0.1: what each face sends at its solved B reaches the
+    others within 2.5% (``delivered``: 0.4-1.9% short), and under 4% of the emitted light
+    escapes (3.2%). With a link's transfer averaged over its receiver from the receiver's
+    quadratic alone (three points), which misses the peak of F near the receiver's edge, two
+    walls sent 4.5% and 6.4% of their light nowhere and the floor and ceiling 0.5-0.7% too
+    much (2.7% escaped)."""
+    faces = [(tiled(a, u, v, 1), 0.7, 0.0) for a, u, v in closed_box((0, 0, 0), (5, 4, 2.7), inward=True)]
+    lamp = [[(2.2, 1.7, 2.69), (2.2, 2.3, 2.69), (2.8, 2.3, 2.69), (2.8, 1.7, 2.69)]]      # faces down
+    scene = build(faces + [(lamp, 0.8, 20 * np.pi)])
+    hr, r = run(scene, quality=0.1)
+    face = scene.object_index[hr.nodes.root[hr.leaf_ids]]
+    for k in range(6):
+        leaving, delivered = hr.delivered(face == k)
+        assert abs(delivered[0] / leaving[0] - 1) < 0.025, k
+    assert np.all(np.abs(r.result.escaped) < 0.04 * r.result.emitted)

@@ -7,7 +7,11 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
   form factor from the point to the polygon S, clipped at the point's horizon, times the
   fraction of ``VISIBILITY_RAYS`` shadow rays from x to stratified, seeded points on S that
   arrive. Exact for the source's extent however near it is, so near-field links need refine
-  only for how the light varies over R.
+  only for how the light varies over R. The quadratic is scaled to R's mean of the
+  unoccluded F by a 12-point degree-6 rule (``MEAN_POINTS``): its own mean, from three
+  points, misses the peak of F near R's edge, and the perpendicular walls of an empty room
+  took 6-18% too little of each other's light (6.5% of a lamp's light escaped the closed
+  room); now within 1% of Monte-Carlo form factors.
 - with a cluster at either end: between the ends' centres along w, at distance d, the source
   sending its projected area A_proj(w) times its radiosity, the receiver taking cos per
   element (a cluster receiver hands the light to its triangles, ``solve``), through the
@@ -19,8 +23,9 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
 
 Error estimate of a link (W/m^2 at R, worst channel), against epsilon x the scene's mean
 emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the miss of the
-quadratic at R's check points (or a quarter of F's spread over R if more, or the unoccluded
-F where any shadow ray was blocked: a shadow boundary may cross R); cluster links rho_R B_S
+quadratic at R's check points (or a quarter of F's spread over R, or how far its mean was
+from the degree-6 rule's, if more; or the unoccluded F where any shadow ray was blocked: a
+shadow boundary may cross R); cluster links rho_R B_S
 (F x the ends' angular size seen across the link + the unoccluded F where any ray was
 blocked); near cluster links (the ends' spheres overlap, or one straddles an element's
 plane: the kernel does not hold) all the light S could bring, rho_R sum(B A) over S /
@@ -41,6 +46,21 @@ from .nodes import DIRECTIONS, Nodes, direction_weights
 
 #: Barycentric points on a receiving element where its form factor is evaluated (``quadratic``).
 RECEIVER_POINTS = quadratic.POINTS
+
+
+def _dunavant6() -> tuple[np.ndarray, np.ndarray]:
+    """Dunavant's 12-point rule, exact for polynomials of degree 6 on a triangle: barycentric
+    points (12, 3) and weights (12,) summing to 1."""
+    a, b, c, d, e = 0.501426509658179, 0.249286745170910, 0.873821971016996, 0.063089014491502, 0.053145049844817
+    f, g = 0.310352451033784, 0.636502499121399
+    pts = [(a, b, b), (b, a, b), (b, b, a), (c, d, d), (d, c, d), (d, d, c)]
+    pts += [(e, f, g), (e, g, f), (f, e, g), (f, g, e), (g, e, f), (g, f, e)]
+    w = [0.116786275726379] * 3 + [0.050844906370207] * 3 + [0.082851075618374] * 6
+    return np.array(pts), np.array(w)
+
+
+#: Points and weights of a receiving element's mean form factor (``Evaluator._elements``).
+MEAN_POINTS, MEAN_WEIGHTS = _dunavant6()
 #: Share of F's spread over the receiver counted as error even where the quadratic fits the
 #: check points (a peak near an edge falls between them).
 SPREAD_SHARE = 0.25
@@ -237,10 +257,17 @@ class Evaluator:
         tri_s, tri_r, n_r = nd.tri[s], nd.tri[r], nd.normal[r]
         x = np.einsum("pk,lkc->lpc", RECEIVER_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
         F0 = polygon_factor(x, n_r, tri_s)                                  # (L, P) unoccluded
+        # the mean over R by a degree-6 rule: R's quadratic (its mean from three points) misses
+        # a peak of F near R's edge
+        xq = np.einsum("pk,lkc->lpc", MEAN_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
+        mean_q = polygon_factor(xq, n_r, tri_s) @ MEAN_WEIGHTS
+        mean0 = F0[:, :6] @ quadratic.MEAN
+        F0 = F0 * np.where(mean0 > 0, mean_q / np.where(mean0 > 0, mean0, 1.0), 1.0)[:, None]
         V = self._visible_from_points(x, n_r, tri_s, nd.normal[s], F0 > 0)
         F = F0 * V
         miss = np.abs(F[:, 6:] - F[:, :6] @ quadratic.AT_CHECK.T).max(axis=1)
         miss = np.maximum(miss, SPREAD_SHARE * (F.max(axis=1) - F.min(axis=1)))
+        miss = np.maximum(miss, np.abs(mean0 - mean_q))
         # a shadow boundary may cross R (or every ray was blocked and the samples missed where
         # S shows): the unoccluded F bounds the light at stake
         occluded = np.where(((V < 1) & (F0 > 0)).any(axis=1), F0[:, :6] @ quadratic.MEAN, 0.0)
