@@ -634,7 +634,7 @@ def test_the_walls_of_an_empty_room_deliver_their_light():
     1 cm under the ceiling, Quality 0.1: what each face sends at its solved B reaches the
     others within 2.5% (``delivered``: 0.4-1.9% short), and under 4% of the emitted light
     escapes (3.2%). With a link's transfer averaged over its receiver from the receiver's
-    quadratic alone (three points), which misses the peak of F near the receiver's edge, two
+    quadratic alone, which cannot follow a steep rise of F towards the receiver's edge, two
     walls sent 4.5% and 6.4% of their light nowhere and the floor and ceiling 0.5-0.7% too
     much (2.7% escaped)."""
     faces = [(tiled(a, u, v, 1), 0.7, 0.0) for a, u, v in closed_box((0, 0, 0), (5, 4, 2.7), inward=True)]

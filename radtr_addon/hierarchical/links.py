@@ -8,8 +8,8 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
   fraction of ``VISIBILITY_RAYS`` shadow rays from x to stratified, seeded points on S that
   arrive. Exact for the source's extent however near it is, so near-field links need refine
   only for how the light varies over R. The quadratic is scaled to R's mean of the
-  unoccluded F by a 12-point degree-6 rule (``MEAN_POINTS``): its own mean, from three
-  points, misses the peak of F near R's edge, and the perpendicular walls of an empty room
+  unoccluded F by a 12-point degree-6 rule (``MEAN_POINTS``): its shape cannot follow a
+  steep rise of F towards R's edge, and the perpendicular walls of an empty room
   took 6-18% too little of each other's light (6.5% of a lamp's light escaped the closed
   room); now within 1% of Monte-Carlo form factors.
 - with a cluster at either end: between the ends' centres along w, at distance d, the source
@@ -85,7 +85,7 @@ class Links:
     src: np.ndarray
     rcv: np.ndarray
     coef: np.ndarray       # (L, 6) transfer per unit source term at the receiver's nodes
-    spread: np.ndarray     # element pairs: the quadratic's miss at the centroid; cluster links: angular size
+    spread: np.ndarray     # element pairs: the quadratic's miss (``Evaluator._elements``); cluster links: angular size
     occluded: np.ndarray   # unoccluded mean transfer where visibility is not complete, else 0
     d: np.ndarray          # (L, 3) table directions around the direction of travel S -> R
     dw: np.ndarray         # (L, 3) their weights (``nodes.direction_weights``)
@@ -257,12 +257,14 @@ class Evaluator:
         tri_s, tri_r, n_r = nd.tri[s], nd.tri[r], nd.normal[r]
         x = np.einsum("pk,lkc->lpc", RECEIVER_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
         F0 = polygon_factor(x, n_r, tri_s)                                  # (L, P) unoccluded
-        # the mean over R by a degree-6 rule: R's quadratic (its mean from three points) misses
-        # a peak of F near R's edge
+        # the mean over R by a degree-6 rule: R's quadratic cannot follow a steep rise of F
+        # towards R's edge; where the rule's points see nothing of S (a sliver of R in front
+        # of it) the quadratic is kept and the difference refines the link
         xq = np.einsum("pk,lkc->lpc", MEAN_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
         mean_q = polygon_factor(xq, n_r, tri_s) @ MEAN_WEIGHTS
         mean0 = F0[:, :6] @ quadratic.MEAN
-        F0 = F0 * np.where(mean0 > 0, mean_q / np.where(mean0 > 0, mean0, 1.0), 1.0)[:, None]
+        scaled = (mean0 > 0) & (mean_q > 0)
+        F0 = F0 * np.where(scaled, mean_q / np.where(scaled, mean0, 1.0), 1.0)[:, None]
         V = self._visible_from_points(x, n_r, tri_s, nd.normal[s], F0 > 0)
         F = F0 * V
         miss = np.abs(F[:, 6:] - F[:, :6] @ quadratic.AT_CHECK.T).max(axis=1)
