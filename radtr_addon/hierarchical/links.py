@@ -8,8 +8,8 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
   fraction of ``VISIBILITY_RAYS`` shadow rays from x to stratified, seeded points on S that
   arrive. Exact for the source's extent however near it is, so near-field links need refine
   only for how the light varies over R. The quadratic is scaled to R's mean of the
-  unoccluded F by a 12-point degree-6 rule (``MEAN_POINTS``): its shape cannot follow a
-  steep rise of F towards R's edge, and the perpendicular walls of an empty room
+  unoccluded F by a 12-point degree-6 rule (``quadratic.RULE_POINTS``): its shape cannot
+  follow a steep rise of F towards R's edge, and the perpendicular walls of an empty room
   took 6-18% too little of each other's light (6.5% of a lamp's light escaped the closed
   room); now within 1% of Monte-Carlo form factors.
 - with a cluster at either end: between the ends' centres along w, at distance d, the source
@@ -46,21 +46,6 @@ from .nodes import DIRECTIONS, Nodes, direction_weights
 
 #: Barycentric points on a receiving element where its form factor is evaluated (``quadratic``).
 RECEIVER_POINTS = quadratic.POINTS
-
-
-def _dunavant6() -> tuple[np.ndarray, np.ndarray]:
-    """Dunavant's 12-point rule, exact for polynomials of degree 6 on a triangle: barycentric
-    points (12, 3) and weights (12,) summing to 1."""
-    a, b, c, d, e = 0.501426509658179, 0.249286745170910, 0.873821971016996, 0.063089014491502, 0.053145049844817
-    f, g = 0.310352451033784, 0.636502499121399
-    pts = [(a, b, b), (b, a, b), (b, b, a), (c, d, d), (d, c, d), (d, d, c)]
-    pts += [(e, f, g), (e, g, f), (f, e, g), (f, g, e), (g, e, f), (g, f, e)]
-    w = [0.116786275726379] * 3 + [0.050844906370207] * 3 + [0.082851075618374] * 6
-    return np.array(pts), np.array(w)
-
-
-#: Points and weights of a receiving element's mean form factor (``Evaluator._elements``).
-MEAN_POINTS, MEAN_WEIGHTS = _dunavant6()
 #: Share of F's spread over the receiver counted as error even where the quadratic fits the
 #: check points (a peak near an edge falls between them).
 SPREAD_SHARE = 0.25
@@ -255,13 +240,15 @@ class Evaluator:
         if not len(s):
             return Links.empty()
         tri_s, tri_r, n_r = nd.tri[s], nd.tri[r], nd.normal[r]
-        x = np.einsum("pk,lkc->lpc", RECEIVER_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
+        points = np.vstack([RECEIVER_POINTS, quadratic.RULE_POINTS])
+        x = np.einsum("pk,lkc->lpc", points, tri_r) + self.caster.epsilon * n_r[:, None]
         F0 = polygon_factor(x, n_r, tri_s)                                  # (L, P) unoccluded
         # the mean over R by a degree-6 rule: R's quadratic cannot follow a steep rise of F
         # towards R's edge; where the rule's points see nothing of S (a sliver of R in front
         # of it) the quadratic is kept and the difference refines the link
-        xq = np.einsum("pk,lkc->lpc", MEAN_POINTS, tri_r) + self.caster.epsilon * n_r[:, None]
-        mean_q = polygon_factor(xq, n_r, tri_s) @ MEAN_WEIGHTS
+        k = len(RECEIVER_POINTS)
+        mean_q = F0[:, k:] @ quadratic.RULE_WEIGHTS
+        x, F0 = x[:, :k], F0[:, :k]
         mean0 = F0[:, :6] @ quadratic.MEAN
         scaled = (mean0 > 0) & (mean_q > 0)
         F0 = F0 * np.where(scaled, mean_q / np.where(scaled, mean0, 1.0), 1.0)[:, None]

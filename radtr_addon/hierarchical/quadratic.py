@@ -22,6 +22,16 @@ CHECK = np.vstack([[[1 / 3] * 3], (np.eye(3) + 1 / 3) / 2])
 #: Barycentric points where a link's form factor is evaluated: the six nodes, then ``CHECK``.
 POINTS = np.vstack([(1 - INSET) * _REF + INSET / 3, CHECK])
 
+#: Dunavant's 12-point rule, exact for polynomials of degree 6 on a triangle: barycentric points
+#: and weights (summing to 1) of a link's mean form factor over its receiver
+#: (``links.Evaluator._elements``), where the quadratic cannot follow a steep rise of F.
+_A6, _B6, _C6, _D6, _E6, _F6, _G6 = (0.501426509658179, 0.249286745170910, 0.873821971016996, 0.063089014491502,
+                                     0.053145049844817, 0.310352451033784, 0.636502499121399)
+RULE_POINTS = np.array([(_A6, _B6, _B6), (_B6, _A6, _B6), (_B6, _B6, _A6), (_C6, _D6, _D6), (_D6, _C6, _D6),
+                        (_D6, _D6, _C6), (_E6, _F6, _G6), (_E6, _G6, _F6), (_F6, _E6, _G6), (_F6, _G6, _E6),
+                        (_G6, _E6, _F6), (_G6, _F6, _E6)])
+RULE_WEIGHTS = np.array([0.116786275726379] * 3 + [0.050844906370207] * 3 + [0.082851075618374] * 6)
+
 
 def basis(bary: np.ndarray) -> np.ndarray:
     """P2 basis values (m, 6) at barycentric points (m, 3) of the inset triangle."""
