@@ -128,3 +128,20 @@ def parallel_rays(centre: np.ndarray, radius: float, direction: np.ndarray, res:
     gx, gy = np.meshgrid(g * radius, (g[::-1] if top_down else g) * radius)
     origins = centre + 2 * radius * direction + gx.reshape(-1, 1) * t[0] + gy.reshape(-1, 1) * b[0]
     return origins, np.broadcast_to(-direction, origins.shape)
+
+
+def hashed_uniforms(keys: tuple, count: int) -> np.ndarray:
+    """``count`` uniforms in [0, 1) (count, m), a fixed function of the integer ``keys`` (a tuple of
+    (m,) arrays; splitmix64): the same entry draws the same samples whenever it is made."""
+    h = np.zeros(len(keys[0]), np.uint64)
+    with np.errstate(over="ignore"):
+        for k in keys:
+            h = (h ^ np.asarray(k).astype(np.uint64)) * np.uint64(0x9E3779B97F4A7C15)
+        out = []
+        for _ in range(count):
+            h = h + np.uint64(0x9E3779B97F4A7C15)
+            z = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+            z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+            z = z ^ (z >> np.uint64(31))
+            out.append((z >> np.uint64(11)).astype(np.float64) / float(1 << 53))
+    return np.array(out)

@@ -357,15 +357,19 @@ class Evaluator:
         normal[el] = nd.normal[nodes_[el]][:, None]
         cl = np.flatnonzero(~el)
         if len(cl):
-            lo, hi = self.span[nodes_[cl], 0], self.span[nodes_[cl], 1]
-            base = np.where(lo > 0, self.cum_area[np.maximum(lo - 1, 0)], 0.0)
-            pick = base[:, None] + self.rng.random((len(cl), m)) * (self.cum_area[hi - 1] - base)[:, None]
-            k = np.minimum(np.searchsorted(self.cum_area, pick, side="right"), (hi - 1)[:, None])
-            t = nd.order[k]
+            t = self.member_by_area(nodes_[cl, None], self.rng.random((len(cl), m)))
             s = nd.scene
             out[cl] = triangle_points(s.vertices[s.triangles[t]], self.rng.random(t.shape), self.rng.random(t.shape))
             normal[cl] = s.normals[t]
         return out, normal
+
+    def member_by_area(self, clusters: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The input triangle of each cluster (any shape) that the uniform ``u`` (same shape)
+        picks, each member with the chance of its share of the cluster's area."""
+        lo, hi = self.span[clusters, 0], self.span[clusters, 1]
+        base = np.where(lo > 0, self.cum_area[np.maximum(lo - 1, 0)], 0.0)
+        pick = base + u * (self.cum_area[hi - 1] - base)
+        return self.nodes.order[np.minimum(np.searchsorted(self.cum_area, pick, side="right"), hi - 1)]
 
     def _visible_between(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Visible fraction (L,) between the two ends: rays between random points of their

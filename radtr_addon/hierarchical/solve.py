@@ -82,7 +82,8 @@ class ClusterMaps:
     (``links.polygon_factor``: from the element's centre to the triangle, or from the
     triangle's centroid to the element), scaled to undo the link's one-disc kernel: as one
     disc at the centres' distance, the boxes of a closed room sent 5.8% of their light
-    nowhere (3.3% so; 0.5% with element links alone)."""
+    nowhere (3.3% so; 0.5% with element links alone). A partly visible link's entries are
+    shared out by a shadow ray each (``_member_visibility``)."""
 
     links: Links
     send: np.ndarray
@@ -177,24 +178,21 @@ def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndar
     visibility shared by all its triangles lets the light of its lit, exposed parts go out
     as if from its hidden ones too. Entries not cast, or of links that see their other end
     whole or not at all, get 1."""
-    from ..sampling import triangle_points
+    from ..sampling import hashed_uniforms, triangle_points
 
     out = np.ones(len(t))
     cast = np.flatnonzero((vis > 0) & (vis < 1) & (v > 0))
     if not len(cast):
         return out
     nd, sc = evaluator.nodes, evaluator.nodes.scene
-    u = _hashed_uniforms((end[cast], other[cast], t[cast]), 5)
+    u = hashed_uniforms((end[cast], other[cast], t[cast]), 5)
     tc, oc = t[cast], other[cast]
     a = triangle_points(sc.vertices[sc.triangles[tc]], u[0], u[1])
     na = sc.normals[tc]
     b, nb = triangle_points(nd.tri[oc], u[3], u[4]), nd.normal[oc]
     cl = np.flatnonzero(nd.cluster[oc])
     if len(cl):                                  # a member of the other cluster, by area
-        lo, hi = evaluator.span[oc[cl], 0], evaluator.span[oc[cl], 1]
-        base = np.where(lo > 0, evaluator.cum_area[np.maximum(lo - 1, 0)], 0.0)
-        pick = base + u[2][cl] * (evaluator.cum_area[hi - 1] - base)
-        k = nd.order[np.minimum(np.searchsorted(evaluator.cum_area, pick, side="right"), hi - 1)]
+        k = evaluator.member_by_area(oc[cl], u[2][cl])
         b[cl] = triangle_points(sc.vertices[sc.triangles[k]], u[3][cl], u[4][cl])
         nb[cl] = sc.normals[k]
     d = b - a
@@ -203,27 +201,8 @@ def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndar
     seen[faced] = evaluator.caster.clear_between(a[faced], b[faced], na[faced], nb[faced])
     out[cast] = seen
     # per link: keep the entries' sum, so the link's own visibility stands
-    n = int(pos.max()) + 1
-    total = np.bincount(pos, weights=v, minlength=n)
-    kept = np.bincount(pos, weights=v * out, minlength=n)
-    scale = np.where(kept > 0, total / np.maximum(kept, 1e-300), 1.0)
-    return np.where(kept[pos] > 0, out * scale[pos], 1.0)
-
-
-def _hashed_uniforms(keys: tuple, count: int) -> np.ndarray:
-    """``count`` uniforms in [0, 1) (count, m) per m-tuple of integer ``keys`` (splitmix64)."""
-    h = np.zeros(len(keys[0]), np.uint64)
-    with np.errstate(over="ignore"):
-        for k in keys:
-            h = (h ^ np.asarray(k).astype(np.uint64)) * np.uint64(0x9E3779B97F4A7C15)
-        out = []
-        for _ in range(count):
-            h = h + np.uint64(0x9E3779B97F4A7C15)
-            z = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-            z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-            z = z ^ (z >> np.uint64(31))
-            out.append((z >> np.uint64(11)).astype(np.float64) / float(1 << 53))
-    return np.array(out)
+    total, kept = np.bincount(pos, weights=v)[pos], np.bincount(pos, weights=v * out)[pos]
+    return np.where(kept > 0, out * total / np.maximum(kept, 1e-300), 1.0)
 
 
 @dataclass
