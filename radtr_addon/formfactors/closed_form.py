@@ -3,7 +3,8 @@
 - ``point_to_polygon``: differential area at p with normal n to a planar polygon, by
   Lambert's contour integral F = (1 / 2 pi) sum_k gamma_k (n . unit(R_k x R_k+1)), after
   clipping the polygon to the half-space in front of the point.
-- ``point_to_triangles``: the same for many points and triangles at once (vectorised).
+- ``polygon_factor``: the same for many points and triangles, pair by pair (vectorised,
+  clipped at each point's horizon); ``point_to_triangles`` for every point and triangle.
 - ``parallel_rectangles`` and ``perpendicular_rectangles``: the catalogue closed forms
   (Howell, configurations C-11 and C-14).
 - ``polygon_to_polygon``: area-to-area form factor of two planar polygons by Stokes' double
@@ -139,26 +140,55 @@ def polygon_to_polygon(poly1, poly2) -> float:
 
 
 def point_to_triangles(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """Unoccluded form factors (P, J) from points facing ``normals`` to the fronts of triangles (J, 3, 3).
+    """Unoccluded form factors (P, J) from points facing ``normals`` to the fronts of
+    triangles (J, 3, 3): ``polygon_factor`` for every pair."""
+    P, J = len(points), len(tris)
+    F = polygon_factor(np.repeat(points, J, axis=0)[:, None], np.repeat(normals, J, axis=0), np.tile(tris, (P, 1, 1)))
+    return F.reshape(P, J)
 
-    Lambert's contour integral, vectorised for triangles wholly in front of a point; those
-    cut by its tangent plane go through ``point_to_polygon`` (which clips), those behind or
-    facing away give 0.
-    """
-    rel = tris[None] - points[:, None, None]                          # (P, J, 3 corners, 3)
-    height = np.einsum("pjkc,pc->pjk", rel, normals)
-    tri_n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    facing = np.einsum("pjc,jc->pj", -rel[:, :, 0], tri_n) > 0         # the point sees the front
-    whole = facing & (height >= 0).all(axis=-1) & (height > 0).any(axis=-1)
-    cut = facing & ~whole & (height > 0).any(axis=-1)
-    r = rel / np.linalg.norm(rel, axis=-1, keepdims=True)
-    r2 = np.roll(r, -1, axis=2)
+
+def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Unoccluded form factors (L, P) from points (L, P, 3) facing ``normals`` (L, 3) to the
+    fronts of triangles (L, 3, 3), pair by pair: Lambert's contour integral over the part of
+    each triangle above the point's tangent plane (clipped, so at most a quadrilateral;
+    most triangles are wholly above and go through the three-corner sum as they are)."""
+    L, P = points.shape[:2]
+    n_t = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    front = np.einsum("lpc,lc->lp", points - tris[:, None, 0], n_t) > 0
+    h = np.einsum("lkc,lc->lk", tris, normals)[:, None, :] - np.einsum("lpc,lc->lp", points, normals)[..., None]
+    F = np.zeros((L, P))
+    whole = front & (h > 0).all(axis=-1)
+    li, pi = np.nonzero(whole)
+    if len(li):
+        F[li, pi] = _lambert(tris[li] - points[li, pi][:, None], normals[li])
+    li, pi = np.nonzero(front & ~whole & (h > 0).any(axis=-1))
+    if len(li):
+        F[li, pi] = _lambert(_clipped(tris[li], h[li, pi]) - points[li, pi][:, None], normals[li])
+    return np.minimum(F, 1.0)
+
+
+def _clipped(v: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Triangles (m, 3, 3) cut to where their height ``h`` (m, 3) above a plane is >= 0, as six
+    corners (m, 6, 3) with repeats (a repeated corner adds nothing to Lambert's sum)."""
+    h1, v1 = np.roll(h, -1, axis=1), np.roll(v, -1, axis=1)
+    inside, crossing = h >= 0, (h >= 0) != (h1 >= 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(crossing, h / (h - h1), 0.0)
+    cut = v + t[..., None] * (v1 - v)
+    slots = np.stack([v, cut], axis=2).reshape(-1, 6, 3)               # corner, crossing, corner, ...
+    valid = np.stack([inside, crossing], axis=2).reshape(-1, 6)
+    idx = np.maximum.accumulate(np.where(valid, np.arange(6), -1), axis=1)
+    idx = np.where(idx < 0, idx[:, -1:], idx)                          # fill gaps cyclically
+    return np.take_along_axis(slots, idx[..., None], axis=1)
+
+
+def _lambert(poly: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Lambert's contour sum (m,) for polygons (m, k, 3) seen from the origin facing ``normals``."""
+    r = poly / np.maximum(np.linalg.norm(poly, axis=-1, keepdims=True), 1e-300)
+    r2 = np.roll(r, -1, axis=1)
     cross = np.cross(r, r2)
     sin = np.linalg.norm(cross, axis=-1)
-    gamma = np.arctan2(sin, np.einsum("pjkc,pjkc->pjk", r, r2))
+    gamma = np.arctan2(sin, np.einsum("mkc,mkc->mk", r, r2))
     with np.errstate(invalid="ignore", divide="ignore"):
-        terms = np.where(sin > 0, gamma * np.einsum("pjkc,pc->pjk", cross, normals) / sin, 0.0)
-    F = np.where(whole, np.abs(terms.sum(axis=-1)) / (2 * np.pi), 0.0)
-    for p, j in zip(*np.nonzero(cut)):
-        F[p, j] = point_to_polygon(points[p], normals[p], tris[j])
-    return F
+        terms = np.where(sin > 1e-15, gamma * np.einsum("mkc,mc->mk", cross, normals) / sin, 0.0)
+    return np.abs(terms.sum(axis=-1)) / (2 * np.pi)

@@ -25,11 +25,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import Cancelled, SceneError
+from ..formfactors.closed_form import polygon_factor
 from ..scene import PatchScene
 from ..solvers.result import SolveResult
 from . import quadratic
 from .contacts import Proximity
-from .links import Evaluator, Links, direction_cosines, expand, polygon_factor, ranges
+from .links import Evaluator, Links, direction_cosines, expand, ranges
 from .nodes import DIRECTIONS, Nodes
 
 #: Links held at most (about 100 bytes each), refused beyond with advice.
@@ -79,7 +80,7 @@ class ClusterMaps:
     links, held transposed): max(0, -n.w), how much of each link ``take`` a triangle of its
     receiver gets.
     Between a small cluster and an element, each triangle goes by its own closed form
-    (``links.polygon_factor``: from the element's centre to the triangle, or from the
+    (``closed_form.polygon_factor``: from the element's centre to the triangle, or from the
     triangle's centroid to the element), scaled to undo the link's one-disc kernel: as one
     disc at the centres' distance, the boxes of a closed room sent 5.8% of their light
     nowhere (3.3% so; 0.5% with element links alone). A partly visible link's entries are
@@ -387,7 +388,9 @@ class HierarchicalRadiosity:
             err[ee] = e.max(axis=1)
         o = ~ee & ~L.near
         if o.any():
-            f = L.coef[o, 0] * L.spread[o] + L.occluded[o]
+            # unoccluded where partly seen: an estimate that grew with the link's own V would
+            # keep the links whose rays happened to be blocked and refine the others
+            f = np.maximum(L.coef[o, 0], L.occluded[o]) * L.spread[o] + L.occluded[o]
             err[o] = (rho[o] * term[o] * f[:, None]).max(axis=1)
         o = L.near
         if o.any():
@@ -497,7 +500,7 @@ class HierarchicalRadiosity:
                 src, rcv = src[:REFINE_CHUNK], rcv[:REFINE_CHUNK]
             L = self.evaluator.evaluate(src, rcv)
             need, split_src = self._to_refine(L)
-            self.evaluator.see(L, ~need & L.near)
+            self.evaluator.see(L, ~need & (nd.cluster[L.src] | nd.cluster[L.rcv]))
             kept.append(L.take(~need & (L.coef.max(axis=1) > 0)))
             total += int((~need).sum())
             if total > MAX_LINKS:
