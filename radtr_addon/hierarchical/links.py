@@ -19,7 +19,8 @@ A link S -> R says: R gathers the light of S at this level of both trees. Its tr
   area facing it, where 1 / (pi d^2) would count a source of the receiver's size at twice its
   radius 25% too bright (and such links, each within epsilon, are many: a closed room lost
   or gained 3-4% of its light through them); visibility by rays between random points of
-  the two ends' triangles, weighted by how much those triangles face each other.
+  the two ends' triangles, weighted by the point-to-point kernel cos cos / d^2, cast
+  afresh once the link is kept.
 
 Error estimate of a link (W/m^2 at R, worst channel), against epsilon x the scene's mean
 emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the miss of the
@@ -27,7 +28,8 @@ quadratic at R's check points (or a quarter of F's spread over R, or how far its
 from the degree-6 rule's, if more; or the unoccluded F where any shadow ray was blocked: a
 shadow boundary may cross R); cluster links rho_R B_S
 (F x the ends' angular size seen across the link + the unoccluded F where any ray was
-blocked); near cluster links (the ends' spheres overlap, or one straddles an element's
+blocked, F itself unoccluded there: an estimate that grew with the rays' own V kept the
+links whose rays happened to be blocked); near cluster links (the ends' spheres overlap, or one straddles an element's
 plane: the kernel does not hold) all the light S could bring, rho_R sum(B A) over S /
 (pi gap^2), ``Evaluator.gap``. A link from a source with a surface close in front of part
 of it that is seen only in part (``vis`` below 1) is refined at the source where the
