@@ -26,11 +26,10 @@ Error estimate of a link (W/m^2 at R, worst channel), against epsilon x the scen
 emitted exitance: element pairs rho_R (B_S e + (B_S max - B_S min) F), e the miss of the
 quadratic at R's check points (or a quarter of F's spread over R, or how far its mean was
 from the degree-6 rule's, if more; or the unoccluded F where any shadow ray was blocked: a
-shadow boundary may cross R); cluster links rho_R B_S
-(F x the ends' angular size seen across the link + the unoccluded F where any ray was
-blocked, F itself unoccluded there: an estimate that grew with the rays' own V kept the
-links whose rays happened to be blocked); near cluster links (the ends' spheres overlap, or one straddles an element's
-plane: the kernel does not hold) all the light S could bring, rho_R sum(B A) over S /
+shadow boundary may cross R); cluster links rho_R B_S (F x the ends' angular size seen
+across the link + the unoccluded F where any ray was blocked; with the visibility first
+cast, ``Links.judged``); near cluster links (the ends' spheres overlap, or one straddles
+an element's plane: the kernel does not hold) all the light S could bring, rho_R sum(B A) over S /
 (pi gap^2), ``Evaluator.gap``. A link from a source with a surface close in front of part
 of it that is seen only in part (``vis`` below 1) is refined at the source where the
 spread of its B matters (``solve``). A link over the bound is replaced by the links of the children of its larger
@@ -79,14 +78,23 @@ class Links:
     dw: np.ndarray         # (L, 3) their weights (``nodes.direction_weights``)
     vis: np.ndarray        # visible share of the transfer (F-weighted over R's points; cluster links: V)
     near: np.ndarray       # a cluster link between ends too close for its kernel: spread is 1 / (pi gap^2)
+    judged: np.ndarray     # the visible share its error is estimated with: a kept cluster link's
+    #                        ``vis`` is cast afresh (``Evaluator.see``), so what carries its light
+    #                        is not what chose to keep it
 
-    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw", "vis", "near")
+    FIELDS = ("src", "rcv", "coef", "spread", "occluded", "d", "dw", "vis", "near", "judged")
 
     @classmethod
     def empty(cls) -> "Links":
         z = np.zeros(0)
         return cls(z.astype(np.int64), z.astype(np.int64), np.zeros((0, 6)), z, z, np.zeros((0, 3), np.int64),
-                   np.zeros((0, 3)), z, z.astype(bool))
+                   np.zeros((0, 3)), z, z.astype(bool), z)
+
+    def unoccluded(self, i: np.ndarray) -> np.ndarray:
+        """The unoccluded transfer of cluster links ``i`` (the coefficient without visibility)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.judged[i] < 1, self.occluded[i],
+                            np.where(self.vis[i] > 0, self.coef[i, 0] / self.vis[i], 0.0))
 
     @property
     def mean(self) -> np.ndarray:
@@ -217,7 +225,7 @@ class Evaluator:
         # S shows): the unoccluded F bounds the light at stake
         occluded = np.where(((V < 1) & (F0 > 0)).any(axis=1), F0[:, :6] @ quadratic.MEAN, 0.0)
         vis = F.sum(axis=1) / np.maximum(F0.sum(axis=1), 1e-300)
-        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r), vis, np.zeros(len(s), bool))
+        links = Links(s, r, F[:, :6], miss, occluded, *self._direction(s, r), vis, np.zeros(len(s), bool), vis)
         return links.take(F0.max(axis=1) > 0)
 
     def _visible_from_points(self, x: np.ndarray, n_r: np.ndarray, tri_s: np.ndarray, n_s: np.ndarray,
@@ -276,7 +284,7 @@ class Evaluator:
             bound = 1.0 / (np.pi * self.gap(s, r) ** 2)                   # inf where the boxes touch
         spread = np.where(far, (nd.radius[s] + nd.radius[r]) / np.maximum(dist, 1e-300) + DIRECTION_ERROR, bound)
         return Links(s, r, np.repeat((V * free)[:, None], 6, axis=1), spread, np.where(V < 1, free, 0.0),
-                     d, dw, V, ~far)
+                     d, dw, V, ~far, V)
 
     def gap(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Distance (L,) between the ends' bounding boxes (0 where they overlap): no point of
@@ -287,18 +295,17 @@ class Evaluator:
         return np.linalg.norm(apart, axis=1)
 
     def see(self, L: Links, which: np.ndarray):
-        """Cast the visibility of the kept cluster links ``which`` of L afresh, in place. Near
-        links cast none when evaluated (most are refined, and their rays would be thrown
-        away); a far link's own rays helped decide whether it was kept (its error grows with
-        V), so among the kept ones those whose rays happened to be blocked were too many,
-        and those whose rays all were (V = 0) were dropped with their light: a stack of
-        slats lit on its lowest gave the floor below 15-20% too little."""
+        """Cast the visibility of the kept cluster links ``which`` of L afresh, in place (its
+        transfer's ``vis``; ``judged`` stays). Near links cast none when evaluated (most are
+        refined, and their rays would be thrown away); a far link's own rays decide whether
+        it is kept (its error grows with V), so with those rays carrying its light too the
+        kept links were those whose rays happened to be blocked, and those whose rays all
+        were (V = 0) were dropped with their light: a stack of slats lit on its lowest gave
+        the floor below 15-20% too little."""
         i = np.flatnonzero(which)
         if len(i):
-            free = np.where(L.vis[i] < 1, L.occluded[i], L.coef[i, 0])      # the unoccluded transfer
             V = self._visible_between(L.src[i], L.rcv[i])
-            L.coef[i] = (V * free)[:, None]
-            L.occluded[i] = np.where(V < 1, free, 0.0)
+            L.coef[i] = (V * L.unoccluded(i))[:, None]
             L.vis[i] = V
 
     def _shown_area(self, s: np.ndarray, w: np.ndarray, d: np.ndarray, dw: np.ndarray) -> np.ndarray:
