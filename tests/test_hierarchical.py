@@ -660,12 +660,11 @@ def slats(lit_rho=0.0):
 def test_a_cluster_lit_where_the_receiver_sees_it_sends_its_light():
     """A stack of slats lit on its lowest, the rest hidden behind it: the floor below gets
     the lowest slat's light, Lambert's closed form over each floor leaf (degree-6 rule),
-    within 8% in all at Quality 0.05 (2-6% short over seeds 0-7). 18% short when the rays
-    that judged a link also carried its light (the links kept were those whose rays
-    happened to be blocked, and those whose rays all were were dropped), rays were weighted
-    by cos cos without 1 / d^2 and a receiving cluster took the light at its centre's
-    distance; 75% short while a cluster's visibility was shared by its lit and hidden
-    triangles."""
+    within 8% in all at Quality 0.05 (3-8% short over seeds 0-7; 3% at seed 0). 18% short
+    when the rays that judged a link also carried its light (the links kept were those
+    whose rays happened to be blocked, and those whose rays all were were dropped) and
+    were weighted by cos cos without 1 / d^2; 75% short while a cluster's visibility was
+    shared by its lit and hidden triangles."""
     from radtr_addon.hierarchical import quadratic
 
     scene = slats()

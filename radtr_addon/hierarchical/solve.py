@@ -108,8 +108,7 @@ class ClusterMaps:
         S = csr_matrix((v, (link, t)), shape=(len(send), n))
         shown = nodes.area[L.src] * np.maximum(np.einsum("ij,ij->i", nodes.normal[L.src], w), 0.0)
         take, (link, t, v) = _member_entries(evaluator, L, w, False,
-                                             (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0),
-                                             (dist, disc))
+                                             (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0))
         RT = csr_matrix((v, (link, t)), shape=(len(take), n))
         return cls(L, send, S, take, RT)
 
@@ -129,19 +128,13 @@ class ClusterMaps:
                            vstack([self.RT[kt], more.RT], format="csr"))
 
 
-def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray, kernel=None):
+def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray):
     """The links of L whose sending (or taking) end is a small cluster, and per (link, input
     triangle of that end) the share of the link's light: A max(0, n.w) sent, max(0, -n.w)
     taken; where the other end is an element, the triangle's closed form to it (sending:
     from the element's centre to the triangle; taking: from the triangle's centroid to the
-    element) times ``undo``, the link's kernel over its cosine. Taking from a cluster
-    (``kernel``: the links' centre distance d and disc pi d^2 + A_proj), each triangle by
-    its own direction and distance d_t from the source's centre: its cosine times
-    (pi d^2 + A_proj) / (pi d_t^2 + A_proj); at the centres' distance alone a receiving
-    cluster's near parts got too little and its far ones too much, and 1 / d^2 being
-    convex, the cluster too little in all (a floor taking a slat stack's light through
-    links into floor clusters: 24% short). In batches of ``MAP_BATCH`` entries (a large
-    scene has tens of millions)."""
+    element) times ``undo``, the link's kernel over its cosine. In batches of
+    ``MAP_BATCH`` entries (a large scene has tens of millions)."""
     nodes, span = evaluator.nodes, evaluator.span
     sc, eps = nodes.scene, evaluator.caster.epsilon
     ends, other = (L.src, L.rcv) if sending else (L.rcv, L.src)
@@ -166,14 +159,6 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
             else:
                 x, normal, poly = evaluator.centroids[te] + eps * sc.normals[te], sc.normals[te], nodes.tri[e]
             v[el] = polygon_factor(x[:, None], normal, poly)[:, 0] * undo[j[el]]
-        cl = np.flatnonzero(nodes.cluster[other[j]]) if kernel is not None else []
-        if len(cl):
-            dist, disc = kernel
-            k = j[cl]
-            u = evaluator.centroids[t[cl]] - nodes.center[other[k]]
-            d2 = np.einsum("ij,ij->i", u, u)
-            cos = -np.einsum("ij,ij->i", sc.normals[t[cl]], u) / np.sqrt(np.maximum(d2, 1e-300))
-            v[cl] = np.maximum(cos, 0.0) * disc[k] / np.maximum(disc[k] - np.pi * (dist[k] ** 2 - d2), 1e-300)
         v *= _member_visibility(evaluator, t, ends[j], other[j], L.vis[j], v, pos)
         rows.append(pos + first)
         tris.append(t)
