@@ -38,8 +38,12 @@ def rotated_frames(normals: np.ndarray, angles: np.ndarray) -> tuple[np.ndarray,
 def triangle_points(tris: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Uniform points (..., d) on triangles (..., 3, d) from unit-square samples u, v (...),
     by the square-root warp: barycentrics (1 - sqrt u, sqrt u (1 - v), sqrt u v)."""
-    s = np.sqrt(u)[..., None]
-    return (1 - s) * tris[..., 0, :] + s * (1 - v[..., None]) * tris[..., 1, :] + s * v[..., None] * tris[..., 2, :]
+    a = tris[..., 0, :]
+    out = v[..., None] * (tris[..., 2, :] - tris[..., 1, :])         # a + sqrt u (b - a + v (c - b))
+    out += tris[..., 1, :] - a
+    out = np.sqrt(u)[..., None] * out
+    out += a
+    return out
 
 
 def sphere_points(centre: np.ndarray, radius: float, u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -431,12 +431,13 @@ def test_cluster_maps_carried_over_rounds_equal_maps_made_afresh(monkeypatch):
     hr, _ = run(build([(room, 0.5, 0.0), (boxes, 0.5, 0.0), (lamp, 0.0, 10.0)]), quality=0.1)
     assert len(hr.rounds) >= 3 and made[0] == hr.rounds[0]["links"]
     assert all(n < r["links"] for n, r in zip(made[1:], hr.rounds[1:]))
-    fresh, carried = of(hr.evaluator, hr.links), hr._cluster_maps()
-    assert carried.links is hr.links and len(carried.send) > 100 and len(carried.take) > 100
-    for a, b in ((carried.send, fresh.send), (carried.take, fresh.take)):
+    carried = hr._cluster_maps()
+    assert carried.links is hr.links and len(carried.blocks) == len(hr.rounds)
+    (fs, FS, ft, FRT), (cs, CS, ct, CRT) = of(hr.evaluator, hr.links).joined(), carried.joined()
+    assert len(cs) > 100 and len(ct) > 100
+    for a, b in ((cs, fs), (ct, ft)):
         assert np.array_equal(np.sort(a), np.sort(b))
-    for M, F, ends, f_ends in ((carried.S, fresh.S, carried.send, fresh.send),
-                               (carried.RT, fresh.RT, carried.take, fresh.take)):
+    for M, F, ends, f_ends in ((CS, FS, cs, fs), (CRT, FRT, ct, ft)):
         assert abs(M[np.argsort(ends)] - F[np.argsort(f_ends)]).max() < 1e-12
 
 
@@ -459,9 +460,11 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
     """The bundled furnished room at Quality 0.1 (gaps, contacts, a lamp 1 cm under the
     ceiling, sun and sky through a window) against Cycles baked at the written vertices
     (64 samples, emitters left out), as a user would compare: per-vertex RMS error of the
-    reflected radiance within 5%; every object's mean within 9% (the aim is 3%: against
-    64-sample bakes at Quality 0.1 the east wall is 4.5-5.2% bright, the west wall 3.7-3.9%
-    and the sofa 2.6-3.0%, the rest within 1.7%; RMS 2.5%)."""
+    reflected radiance within 5% (2.5%); every object's area-weighted mean within 6% (the
+    aim is 3%: the sofa is 3.8-4.3% bright, the west wall 2.8-3.0%, the rest within 2.4%).
+    Means are over each object's surface, not its vertices: the strips refined along
+    contacts and corners hold many vertices, and Cycles bakes points on a concave corner
+    line 10-30% bright, which put the east wall's plain vertex mean 5% over."""
     from radtr_addon.bench.adaptive import ResultVertices, solve_scene, worst_object
     from radtr_addon.bench.solvers import cycles_bakes, rel_rms
 
@@ -470,7 +473,7 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
     values, which = vertices.radiance()
     reference = cycles_bakes(job, vertices, (64,))[64][0]
     assert rel_rms(values, reference) < 0.05
-    assert worst_object(values, reference, which) < 0.09
+    assert worst_object(values, reference, which, vertices.areas()) < 0.06
 
 
 def test_a_black_lamp_under_a_ceiling_keeps_the_books():

@@ -183,12 +183,17 @@ def _clipped(v: np.ndarray, h: np.ndarray) -> np.ndarray:
 
 
 def _lambert(poly: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """Lambert's contour sum (m,) for polygons (m, k, 3) seen from the origin facing ``normals``."""
-    r = poly / np.maximum(np.linalg.norm(poly, axis=-1, keepdims=True), 1e-300)
-    r2 = np.roll(r, -1, axis=1)
-    cross = np.cross(r, r2)
-    sin = np.linalg.norm(cross, axis=-1)
-    gamma = np.arctan2(sin, np.einsum("mkc,mkc->mk", r, r2))
+    """Lambert's contour sum (m,) for polygons (m, k, 3) seen from the origin facing ``normals``
+    (components spelled out: ``np.cross`` and ``np.linalg.norm`` took half the time of a
+    large scene's link evaluation)."""
+    r = poly / np.maximum(np.sqrt(np.einsum("mkc,mkc->mk", poly, poly)), 1e-300)[..., None]
+    r2 = r[:, np.r_[1:r.shape[1], 0]]
+    x, y, z = r[..., 0], r[..., 1], r[..., 2]
+    x2, y2, z2 = r2[..., 0], r2[..., 1], r2[..., 2]
+    cx, cy, cz = y * z2 - z * y2, z * x2 - x * z2, x * y2 - y * x2
+    sin = np.sqrt(cx * cx + cy * cy + cz * cz)
+    gamma = np.arctan2(sin, x * x2 + y * y2 + z * z2)
+    along = cx * normals[:, None, 0] + cy * normals[:, None, 1] + cz * normals[:, None, 2]
     with np.errstate(invalid="ignore", divide="ignore"):
-        terms = np.where(sin > 1e-15, gamma * np.einsum("mkc,mc->mk", cross, normals) / sin, 0.0)
+        terms = np.where(sin > 1e-15, gamma * along / sin, 0.0)
     return np.abs(terms.sum(axis=-1)) / (2 * np.pi)

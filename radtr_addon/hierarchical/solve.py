@@ -87,10 +87,7 @@ class ClusterMaps:
     shared out by a shadow ray each (``_member_visibility``)."""
 
     links: Links
-    send: np.ndarray
-    S: object
-    take: np.ndarray
-    RT: object             # R transposed (taking links x input triangles)
+    blocks: list           # per round's new links: (send, S, take, RT); -1 for a link since refined
 
     @classmethod
     def of(cls, evaluator, L: Links) -> "ClusterMaps":
@@ -110,22 +107,47 @@ class ClusterMaps:
         take, (link, t, v) = _member_entries(evaluator, L, w, False,
                                              (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0))
         RT = csr_matrix((v, (link, t)), shape=(len(take), n))
-        return cls(L, send, S, take, RT)
+        return cls(L, [(send, S, take, RT)])
 
     def extended(self, evaluator, keep: np.ndarray, new: Links, links: Links) -> "ClusterMaps":
         """The maps of ``links`` = the links of these maps where ``keep``, then ``new``: the
-        kept rows are reused (a large scene's later rounds refine a few links of millions,
-        and its maps took a minute to make)."""
+        kept rows stay where they are, their links renumbered (a large scene's later rounds
+        refine a few links of millions, and restacking its maps took 13 s a round); a block
+        is compacted once most of its rows are of links since refined."""
+        at = np.where(keep, np.cumsum(keep) - 1, -1)               # where a kept link lands
+        blocks = []
+        for send, S, take, RT in self.blocks:
+            send, take = np.where(send >= 0, at[send], -1), np.where(take >= 0, at[take], -1)
+            if 2 * (send >= 0).sum() < len(send) or 2 * (take >= 0).sum() < len(take):
+                ks, kt = send >= 0, take >= 0
+                send, S, take, RT = send[ks], S[ks], take[kt], RT[kt]
+            blocks.append((send, S, take, RT))
+        send, S, take, RT = ClusterMaps.of(evaluator, new).blocks[0]
+        held = int(keep.sum())
+        return ClusterMaps(links, blocks + [(send + held, S, take + held, RT)])
+
+    def sent(self, B_roots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(links, term): what each sending small cluster's link carries, from its input
+        triangles' radiosity ``B_roots`` (input triangles, 3)."""
+        out = [((S @ B_roots)[send >= 0], send[send >= 0]) for send, S, _, _ in self.blocks]
+        return np.concatenate([o[1] for o in out]), np.concatenate([o[0] for o in out])
+
+    def taking(self) -> np.ndarray:
+        """The links whose receiver is a small cluster."""
+        return np.concatenate([take[take >= 0] for _, _, take, _ in self.blocks])
+
+    def taken(self, per_link: np.ndarray) -> np.ndarray:
+        """Irradiance (input triangles, 3) the taking links bring, each carrying ``per_link``."""
+        return sum(RT.T @ (per_link[take] * (take >= 0)[:, None]) for _, _, take, RT in self.blocks)
+
+    def joined(self) -> tuple:
+        """(send, S, take, RT) of the held links in one block."""
         from scipy.sparse import vstack
 
-        at = np.cumsum(keep) - 1                                  # where a kept link lands
-        more = ClusterMaps.of(evaluator, new)
-        held = int(keep.sum())
-        ks, kt = keep[self.send], keep[self.take]
-        return ClusterMaps(links, np.concatenate([at[self.send[ks]], more.send + held]),
-                           vstack([self.S[ks], more.S], format="csr"),
-                           np.concatenate([at[self.take[kt]], more.take + held]),
-                           vstack([self.RT[kt], more.RT], format="csr"))
+        parts = [(send[send >= 0], S[send >= 0], take[take >= 0], RT[take >= 0])
+                 for send, S, take, RT in self.blocks]
+        return (np.concatenate([p[0] for p in parts]), vstack([p[1] for p in parts], format="csr"),
+                np.concatenate([p[2] for p in parts]), vstack([p[3] for p in parts], format="csr"))
 
 
 def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray):
@@ -423,8 +445,8 @@ class HierarchicalRadiosity:
             corners = self.table[L.src[cs, None], L.d[cs]]                 # (c, 3 directions, 3)
             term[cs] = corners.max(axis=1) if bound else np.einsum("cj,cjk->ck", L.dw[cs], corners)
         if L is self.links and not bound:
-            maps = self._cluster_maps()
-            term[maps.send] = maps.S @ self.Bopen[nd.element_root]
+            links, sent = self._cluster_maps().sent(self.Bopen[nd.element_root])
+            term[links] = sent
         return term
 
     def _cluster_maps(self) -> "ClusterMaps":
@@ -617,10 +639,11 @@ class HierarchicalRadiosity:
         k = len(DIRECTIONS)
         D = np.zeros((self.size0 * k, 3))
         maps = self._cluster_maps()
-        if len(maps.take):                                       # small clusters: by each triangle's cosine
+        taking = maps.taking()
+        if len(taking):                                          # small clusters: by each triangle's cosine
             cr = cr.copy()
-            cr[maps.take] = False
-            H_root = maps.RT.T @ (L.coef[maps.take, :1] * term[maps.take])
+            cr[taking] = False
+            H_root = maps.taken(L.coef[:, :1] * term)
         if cr.any():
             idx = (L.rcv[cr, None] * k + L.d[cr]).ravel()
             val = (L.dw[cr, :, None] * (L.coef[cr, :1] * term[cr])[:, None, :]).reshape(-1, 3)
@@ -632,7 +655,7 @@ class HierarchicalRadiosity:
             D[first + 1] += D[level]
         roots = nd.element_root
         H[roots] += np.einsum("kdc,kd->kc", D[roots], self.cos_root)[:, None, :]
-        if len(maps.take):
+        if len(taking):
             H[roots] += H_root[:, None, :]
         for ids, par, slot in plan:                              # down the element trees
             H[ids] += np.einsum("sij,sjc->sic", quadratic.PUSH[slot], H[par])
