@@ -8,6 +8,8 @@ from radtr_addon.formfactors.closed_form import (
     parallel_rectangles,
     perpendicular_rectangles,
     point_to_polygon,
+    polygon_factor,
+    polygon_factor_numpy,
     polygon_normal_area,
     polygon_to_polygon,
 )
@@ -79,3 +81,26 @@ def test_surfaces_behind_each_other_see_nothing():
     assert polygon_to_polygon(rect(0, 1, 0, 1), rect(0, 1, 0, 1, -1.0)) == 0.0
     assert point_to_polygon([0, 0, 0], [0, 0, 1], rect(0, 1, 0, 1, -1.0, False)) == 0.0
     assert polygon_to_polygon(rect(0, 1, 0, 1), rect(2, 3, 0, 1)) == 0.0   # coplanar
+
+
+@pytest.mark.parametrize("factor", [polygon_factor, polygon_factor_numpy], ids=["compiled", "numpy"])
+def test_polygon_factor_pair_by_pair_equals_the_clipped_contour_integral(factor):
+    """Both forms of the batched pair form factor (compiled where numba builds, numpy) equal
+    ``point_to_polygon`` (clip, then the contour sum, one pair at a time) at random points,
+    normals and triangles: a third of the triangles straddle the point's horizon, half are
+    seen from their back (0)."""
+    from radtr_addon.compiled import kernel
+
+    if factor is polygon_factor and kernel("polygon_factor") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    rng = np.random.default_rng(3)
+    points, tris = rng.normal(size=(400, 5, 3)), rng.normal(size=(400, 3, 3))
+    normals = rng.normal(size=(400, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    facing = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    F = factor(points, normals, tris)
+    ref = [[point_to_polygon(points[m, p], normals[m], tris[m]) if (points[m, p] - tris[m, 0]) @ facing[m] > 0
+            else 0.0 for p in range(5)] for m in range(400)]
+    h = np.einsum("mkc,mc->mk", tris, normals)[:, None] - np.einsum("mpc,mc->mp", points, normals)[..., None]
+    assert 0.2 < ((h > 0).any(-1) & ~(h > 0).all(-1)).mean() and 0.3 < (F > 0).mean() < 0.6
+    assert np.allclose(F, np.minimum(ref, 1.0), rtol=0, atol=1e-12)

@@ -687,3 +687,75 @@ def test_a_cluster_lit_where_the_receiver_sees_it_sends_its_light():
     got = (A * r.result.irradiance[floor, 0]).sum() / (A * np.pi * (exact @ quadratic.RULE_WEIGHTS)).sum()
     print(f"floor gets {got:.3f} of the lit slat's light")
     assert abs(got - 1) < 0.08
+
+
+@pytest.mark.parametrize("form", ["compiled", "numpy"])
+def test_points_on_nodes_fall_on_their_triangles_by_area(form, monkeypatch):
+    """``Evaluator.points_on`` (compiled where numba builds, and numpy's form) puts each point
+    on a triangle of its node, in its plane and inside it, a cluster's members picked by
+    area: on the root of columns over a floor, the floor's share of 20,000 points is its
+    share of the area within 4 sigma, and both forms give the same points."""
+    from radtr_addon import compiled
+
+    if form == "compiled" and compiled.kernel("points_on") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    columns = [q for k in range(5) for a, u, v in closed_box((0.7 * k, 0, 0), (0.7 * k + 0.15, 0.15, 3), False)[1:]
+               for q in tiled(a, u, v, 1)]
+    floor = tiled((-1, -1, 0), (5, 0, 0), (0, 3, 0), 3)
+    hr = HierarchicalRadiosity(build([(columns, 0.5, 0.0), (floor, 0.5, 1.0)]), HierarchicalSettings())
+    nd, ev, sc = hr.nodes, hr.evaluator, hr.nodes.scene
+    root = np.flatnonzero(nd.cluster & (nd.parent < 0))
+    ends = np.r_[np.repeat(root, 200), np.flatnonzero(~nd.cluster)[:50]]
+    u = np.random.default_rng(2).random((len(ends), 100, 3))
+    if form == "numpy":
+        monkeypatch.setattr(compiled, "kernel", lambda name: None)
+    x, n = ev.points_on(ends, u)
+    # each of the root's points lies in a triangle's plane, in its box, with its normal
+    tri, p, m = sc.vertices[sc.triangles], x[:200].reshape(-1, 3), n[:200].reshape(-1, 3)
+    inside = ((np.abs(np.einsum("pc,tc->pt", p, sc.normals) - np.einsum("tc,tc->t", tri[:, 0], sc.normals)) < 1e-9)
+              & (m @ sc.normals.T > 1 - 1e-12)
+              & np.all((p[:, None] > tri.min(axis=1) - 1e-9) & (p[:, None] < tri.max(axis=1) + 1e-9), axis=-1))
+    assert inside.any(axis=1).all()
+    on_floor = (np.abs(x[..., 2]) < 1e-12) & (n[..., 2] > 0.999)
+    share = sc.areas[sc.object_index == 1].sum() / sc.areas.sum()
+    got = on_floor[:200].mean()
+    assert len(root) == 1 and abs(got - share) < 4 * np.sqrt(share * (1 - share) / on_floor[:200].size)
+    el = ends[200:]
+    d = np.einsum("lmc,lc->lm", x[200:] - nd.tri[el, :1], nd.normal[el])
+    assert np.abs(d).max() < 1e-12 and np.allclose(n[200:], nd.normal[el][:, None])
+    if form == "numpy":
+        monkeypatch.undo()
+        if compiled.kernel("points_on") is not None:
+            xc, nc = ev.points_on(ends, u)
+            assert np.allclose(xc, x, atol=1e-12) and np.array_equal(nc, n)
+
+
+def test_member_shares_compiled_equal_numpy_form(monkeypatch):
+    """The (link, member) entries of the cluster maps, compiled where numba builds, equal
+    numpy's form on the links of a tiled room with boxes: each member's share A max(0, n.w)
+    sent, max(0, -n.w) taken; a cluster's sent shares add up to no more than its area, and
+    to some of it for nine in ten links (a source mostly shows its receiver something)."""
+    from radtr_addon import compiled
+    from radtr_addon.hierarchical.solve import EXACT_CLUSTER, _member_shares
+
+    if compiled.kernel("member_shares") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 3)]
+    boxes = [q for x in (0.5, 2.5) for a, u, v in closed_box((x, 1, 0), (x + 0.8, 1.6, 0.7), False)
+             for q in tiled(a, u, v, 2)]
+    hr, _ = run(build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)]), quality=0.3)
+    nd, ev, L = hr.nodes, hr.evaluator, hr.links
+    links = np.flatnonzero(nd.cluster[L.src] & (ev.size(L.src) <= EXACT_CLUSTER))
+    assert len(links) > 100
+    lo, count = ev.span[L.src[links], 0], ev.size(L.src[links])
+    w = nd.center[L.rcv] - nd.center[L.src]
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    for sending in (True, False):
+        got = _member_shares(ev, lo, count, links, w, sending)
+        with monkeypatch.context() as m:
+            m.setattr(compiled, "kernel", lambda name: None)
+            ref = _member_shares(ev, lo, count, links, w, sending)
+        assert all(np.allclose(a, b, rtol=1e-12, atol=0) for a, b in zip(got, ref))
+    pos, _, share = _member_shares(ev, lo, count, links, w, True)
+    shown = np.bincount(pos, weights=share, minlength=len(links))
+    assert np.all(shown <= nd.area[L.src[links]] * (1 + 1e-12)) and (shown > 0).mean() > 0.9

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import compiled
 from ..formfactors.closed_form import polygon_factor
 from ..sampling import strata, triangle_points
 from . import quadratic
@@ -122,6 +123,7 @@ class Evaluator:
         s = nodes.scene
         self.cum_area = np.cumsum(s.areas[nodes.order])    # members by area, in cluster-tree order
         self.centroids = s.centroids
+        self.corners = s.vertices[s.triangles]             # (n, 3, 3) input triangles' corners
         self.span = self._spans()
 
     def _spans(self) -> np.ndarray:
@@ -171,7 +173,7 @@ class Evaluator:
         c = cl[pos]
         tri, normal = nd.tri[ends[pos]], nd.normal[ends[pos]]
         t = nd.order[at[c]]
-        tri[c], normal[c] = sc.vertices[sc.triangles[t]], sc.normals[t]
+        tri[c], normal[c] = self.corners[t], sc.normals[t]
         return tri, normal
 
     def facing(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -316,19 +318,24 @@ class Evaluator:
         out[cs] = np.einsum("cj,cj->c", dw[cs], nd.proj[nd.cluster_row[s[cs]][:, None], d[cs]])
         return out
 
-    def _points_on(self, nodes_: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-        """m random points (L, m, 3) on each node's triangles, chosen by area, and their normals."""
-        nd = self.nodes
-        out, normal = np.empty((len(nodes_), m, 3)), np.empty((len(nodes_), m, 3))
+    def points_on(self, nodes_: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points (L, m, 3) on each node's triangles and their normals, from uniforms u
+        (L, m, 3): u[..., 0] picks a cluster's member by area, the rest place the point on
+        the triangle (compiled where numba builds: the numpy form's gathers of each point's
+        triangle took a sixth of a large scene's solve)."""
+        nd, s = self.nodes, self.nodes.scene
+        kernel = compiled.kernel("points_on")
+        if kernel is not None:
+            return kernel(nodes_, nd.cluster, self.span, self.cum_area, nd.order, nd.tri, nd.normal,
+                          self.corners, s.normals, u)
+        out, normal = np.empty(u.shape), np.empty(u.shape)
         el = ~nd.cluster[nodes_]
-        u, v = self.rng.random((len(nodes_), m)), self.rng.random((len(nodes_), m))
-        out[el] = triangle_points(nd.tri[nodes_[el]][:, None], u[el], v[el])
+        out[el] = triangle_points(nd.tri[nodes_[el]][:, None], u[el, :, 1], u[el, :, 2])
         normal[el] = nd.normal[nodes_[el]][:, None]
         cl = np.flatnonzero(~el)
         if len(cl):
-            t = self.member_by_area(nodes_[cl, None], self.rng.random((len(cl), m)))
-            s = nd.scene
-            out[cl] = triangle_points(s.vertices[s.triangles[t]], self.rng.random(t.shape), self.rng.random(t.shape))
+            t = self.member_by_area(nodes_[cl, None], u[cl, :, 0])
+            out[cl] = triangle_points(self.corners[t], u[cl, :, 1], u[cl, :, 2])
             normal[cl] = s.normals[t]
         return out, normal
 
@@ -349,8 +356,8 @@ class Evaluator:
         nearest the receiver counted too little: a stack of slats lit on its lowest, whose
         upper slats' edges nearest the floor peek past it, gave the floor 6% too little."""
         m = CLUSTER_RAYS
-        a, na = self._points_on(s, m)
-        b, nb = self._points_on(r, m)
+        a, na = self.points_on(s, self.rng.random((len(s), m, 3)))
+        b, nb = self.points_on(r, self.rng.random((len(r), m, 3)))
         d = b - a
         dist = np.linalg.norm(d, axis=-1)
         d = d / np.maximum(dist, 1e-300)[..., None]

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import compiled
 from ..errors import Cancelled, SceneError
 from ..formfactors.closed_form import polygon_factor
 from ..scene import PatchScene
@@ -168,16 +169,14 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
     first = 0
     while first < len(links):
         last = max(first + 1, int(np.searchsorted(np.cumsum(count[first:]), MAP_BATCH)) + first)
-        pos, at = ranges(lo[first:last], count[first:last])
-        t, j = nodes.order[at], links[first:last][pos]
-        cos = np.einsum("ij,ij->i", sc.normals[t], w[j])
-        v = sc.areas[t] * np.maximum(cos, 0.0) if sending else np.maximum(-cos, 0.0)
+        pos, t, v = _member_shares(evaluator, lo[first:last], count[first:last], links[first:last], w, sending)
+        j = links[first:last][pos]
         el = np.flatnonzero(~nodes.cluster[other[j]])
         if len(el):
             e, te = other[j[el]], t[el]
             if sending:
                 x, normal = nodes.center[e] + eps * nodes.normal[e], nodes.normal[e]
-                poly = sc.vertices[sc.triangles[te]]
+                poly = evaluator.corners[te]
             else:
                 x, normal, poly = evaluator.centroids[te] + eps * sc.normals[te], sc.normals[te], nodes.tri[e]
             v[el] = polygon_factor(x[:, None], normal, poly)[:, 0] * undo[j[el]]
@@ -189,6 +188,21 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
     if not rows:
         return links, (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
     return links, (np.concatenate(rows), np.concatenate(tris), np.concatenate(vals))
+
+
+def _member_shares(evaluator, lo, count, links, w, sending):
+    """(entry's link position, input triangle t, t's share of its link's light along w:
+    A max(0, n.w) sent or max(0, -n.w) taken) for the members ``order[lo:lo + count]`` of
+    each link's cluster end (compiled where numba builds: a large scene has tens of millions
+    of entries)."""
+    nodes, sc = evaluator.nodes, evaluator.nodes.scene
+    kernel = compiled.kernel("member_shares")
+    if kernel is not None:
+        return kernel(lo, count, links, nodes.order, sc.normals, sc.areas, w, sending)
+    pos, at = ranges(lo, count)
+    t, j = nodes.order[at], links[pos]
+    cos = np.einsum("ij,ij->i", sc.normals[t], w[j])
+    return pos, t, sc.areas[t] * np.maximum(cos, 0.0) if sending else np.maximum(-cos, 0.0)
 
 
 def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndarray, vis: np.ndarray,
@@ -207,17 +221,12 @@ def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndar
     cast = np.flatnonzero((vis > 0) & (vis < 1) & (v > 0))
     if not len(cast):
         return out
-    nd, sc = evaluator.nodes, evaluator.nodes.scene
+    sc = evaluator.nodes.scene
     u = hashed_uniforms((end[cast], other[cast], t[cast]), 5)
     tc, oc = t[cast], other[cast]
-    a = triangle_points(sc.vertices[sc.triangles[tc]], u[0], u[1])
-    na = sc.normals[tc]
-    b, nb = triangle_points(nd.tri[oc], u[3], u[4]), nd.normal[oc]
-    cl = np.flatnonzero(nd.cluster[oc])
-    if len(cl):                                  # a member of the other cluster, by area
-        k = evaluator.member_by_area(oc[cl], u[2][cl])
-        b[cl] = triangle_points(sc.vertices[sc.triangles[k]], u[3][cl], u[4][cl])
-        nb[cl] = sc.normals[k]
+    a, na = triangle_points(evaluator.corners[tc], u[0], u[1]), sc.normals[tc]
+    b, nb = evaluator.points_on(oc, np.ascontiguousarray(u[2:].T[:, None]))   # by area where oc is a cluster
+    b, nb = b[:, 0], nb[:, 0]
     d = b - a
     faced = (np.einsum("ij,ij->i", na, d) > 0) & (np.einsum("ij,ij->i", nb, d) < 0)
     seen = np.ones(len(cast))

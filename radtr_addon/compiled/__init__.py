@@ -1,0 +1,49 @@
+"""Compiled (numba) forms of the engine's hottest loops, each beside a numpy form of its own.
+
+numba compiles a kernel at its first use, for the CPU its LLVM detects, on the machine that
+runs it, and keeps the code in its cache for that CPU alone (another CPU compiles afresh).
+``kernel(name)`` is the compiled wrapper of ``kernels`` by that name, built and tried on
+tiny arguments once, or None where numba is missing or cannot build here: a warning says
+why, once, and the caller uses its numpy form.
+"""
+from __future__ import annotations
+
+import importlib.util
+import sys
+import warnings
+from functools import lru_cache
+from pathlib import Path
+
+#: The one name ``kernels`` is loaded under, however this package is imported.
+MODULE = "radtr_compiled_kernels"
+
+
+@lru_cache(maxsize=None)
+def kernel(name: str):
+    try:
+        kernels = _kernels()
+        wrapper = getattr(kernels, name)
+        wrapper(*kernels.SMOKE[name]())
+        return wrapper
+    except Exception as exc:            # not installed, or its LLVM cannot build for this CPU
+        why = (str(exc).strip().splitlines() or [""])[0]
+        warnings.warn(f"compiled {name} not built ({type(exc).__name__}: {why}): numpy's form is used, slower",
+                      RuntimeWarning, stacklevel=2)
+        return None
+
+
+def _kernels():
+    """The ``kernels`` module, as ``MODULE`` whether this package is ``radtr_addon`` (the CLI,
+    the tests) or inside the add-on (``radtr.radtr_addon``, ``bl_ext.*``): numba's cache
+    names the module its code came from, and an entry written under one name failed to load
+    under the other."""
+    if MODULE not in sys.modules:
+        spec = importlib.util.spec_from_file_location(MODULE, Path(__file__).with_name("kernels.py"))
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[MODULE] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[MODULE]
+            raise
+    return sys.modules[MODULE]

@@ -1,0 +1,138 @@
+"""The numba kernels (see ``compiled``) and, per wrapper, tiny arguments that build and try it."""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def _lambert(poly, k, x0, x1, x2, n0, n1, n2):
+    """Lambert's contour sum for the first k corners of poly seen from x facing n."""
+    total = 0.0
+    for i in range(k):
+        j = i + 1 if i + 1 < k else 0
+        a0, a1, a2 = poly[i, 0] - x0, poly[i, 1] - x1, poly[i, 2] - x2
+        b0, b1, b2 = poly[j, 0] - x0, poly[j, 1] - x1, poly[j, 2] - x2
+        la = max(np.sqrt(a0 * a0 + a1 * a1 + a2 * a2), 1e-300)
+        lb = max(np.sqrt(b0 * b0 + b1 * b1 + b2 * b2), 1e-300)
+        a0, a1, a2, b0, b1, b2 = a0 / la, a1 / la, a2 / la, b0 / lb, b1 / lb, b2 / lb
+        c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        sin = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+        if sin > 1e-15:
+            gamma = np.arctan2(sin, a0 * b0 + a1 * b1 + a2 * b2)
+            total += gamma * (c0 * n0 + c1 * n1 + c2 * n2) / sin
+    return abs(total) / (2 * np.pi)
+
+@njit(parallel=True, cache=True)
+def _polygon_factor(points, normals, tris, out):
+    """out[m, p]: the form factor from points[m, p] facing normals[m] to the front of tris[m]."""
+    L, P = out.shape
+    for m in prange(L):
+        t = tris[m]
+        poly = np.empty((4, 3))
+        h = np.empty(3)
+        e0, e1, e2 = t[1, 0] - t[0, 0], t[1, 1] - t[0, 1], t[1, 2] - t[0, 2]
+        f0, f1, f2 = t[2, 0] - t[0, 0], t[2, 1] - t[0, 1], t[2, 2] - t[0, 2]
+        nt0, nt1, nt2 = e1 * f2 - e2 * f1, e2 * f0 - e0 * f2, e0 * f1 - e1 * f0
+        n0, n1, n2 = normals[m, 0], normals[m, 1], normals[m, 2]
+        for p in range(P):
+            x0, x1, x2 = points[m, p, 0], points[m, p, 1], points[m, p, 2]
+            out[m, p] = 0.0
+            if (x0 - t[0, 0]) * nt0 + (x1 - t[0, 1]) * nt1 + (x2 - t[0, 2]) * nt2 <= 0:
+                continue                                 # the triangle's back faces x
+            above = 0
+            for k in range(3):
+                h[k] = (t[k, 0] - x0) * n0 + (t[k, 1] - x1) * n1 + (t[k, 2] - x2) * n2
+                above += h[k] > 0
+            if above == 0:
+                continue                                 # wholly below x's horizon
+            if above == 3:
+                F = _lambert(t, 3, x0, x1, x2, n0, n1, n2)
+            else:                                        # clip at the horizon
+                c = 0
+                for k in range(3):
+                    j = k + 1 if k < 2 else 0
+                    if h[k] >= 0:
+                        poly[c] = t[k]
+                        c += 1
+                    if (h[k] >= 0) != (h[j] >= 0):
+                        s = h[k] / (h[k] - h[j])
+                        for q in range(3):
+                            poly[c, q] = t[k, q] + s * (t[j, q] - t[k, q])
+                        c += 1
+                F = _lambert(poly, c, x0, x1, x2, n0, n1, n2)
+            out[m, p] = min(F, 1.0)
+
+
+def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """``closed_form.polygon_factor``: each (point, triangle) pair clipped and summed in
+    registers (the numpy form's temporaries, the clip's six slots and the contour's cross
+    products, took most of a large scene's link evaluation)."""
+    out = np.empty(points.shape[:2])
+    _polygon_factor(np.ascontiguousarray(points, np.float64), np.ascontiguousarray(normals, np.float64),
+           np.ascontiguousarray(tris, np.float64), out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, u, out, out_normal):
+    for m in prange(len(ends)):
+        e = ends[m]
+        for k in range(u.shape[1]):
+            if cluster[e]:
+                lo, hi = span[e, 0], span[e, 1]
+                base = cum_area[lo - 1] if lo > 0 else 0.0
+                pick = base + u[m, k, 0] * (cum_area[hi - 1] - base)
+                t = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
+                tri, n = corners[t], normals[t]
+            else:
+                tri, n = node_tri[e], node_normal[e]
+            r, v = np.sqrt(u[m, k, 1]), u[m, k, 2]
+            for c in range(3):
+                out[m, k, c] = tri[0, c] + r * (tri[1, c] - tri[0, c] + v * (tri[2, c] - tri[1, c]))
+                out_normal[m, k, c] = n[c]
+
+
+def points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, u):
+    """``hierarchical.links.Evaluator.points_on``: points (L, m, 3) and their normals on
+    the nodes ``ends`` (L,), one per uniform triple u (L, m, 3): on an element's triangle,
+    or on the input triangle of a cluster that u[..., 0] picks by area (its members
+    ``order[span[e, 0]:span[e, 1]]``, ``cum_area`` their running area), by the square-root
+    warp of u[..., 1:] (``sampling.triangle_points``)."""
+    out, out_normal = np.empty(u.shape), np.empty(u.shape)
+    _points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, u, out, out_normal)
+    return out, out_normal
+
+
+@njit(parallel=True, cache=True)
+def _member_shares(lo, count, start, link, order, normals, areas, w, sending, pos, tri, share):
+    for i in prange(len(lo)):
+        j = link[i]
+        for k in range(count[i]):
+            e, t = start[i] + k, order[lo[i] + k]
+            c = normals[t, 0] * w[j, 0] + normals[t, 1] * w[j, 1] + normals[t, 2] * w[j, 2]
+            pos[e], tri[e] = i, t
+            share[e] = areas[t] * max(c, 0.0) if sending else max(-c, 0.0)
+
+
+def member_shares(lo, count, link, order, normals, areas, w, sending):
+    """``hierarchical.solve._member_shares``: per (link i, member t of its cluster end, the
+    input triangles ``order[lo[i]:lo[i] + count[i]]``) the entry's link position, t, and t's
+    share of link ``link[i]``'s light along w: A max(0, n.w) sent or max(0, -n.w) taken."""
+    start = np.cumsum(count) - count
+    n = int(count.sum())
+    pos, tri, share = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
+    _member_shares(lo, count, start, link, order, normals, areas, w, sending, pos, tri, share)
+    return pos, tri, share
+
+
+#: Per wrapper, tiny arguments that build it and try it once.
+SMOKE = {
+    "polygon_factor": lambda: (np.zeros((1, 1, 3)), np.array([[0.0, 0.0, 1.0]]),
+                               np.array([[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]])),
+    "points_on": lambda: (np.array([0, 1]), np.array([True, False]), np.array([[0, 1], [0, 1]]), np.array([0.5]),
+                          np.array([0]), np.zeros((2, 3, 3)), np.zeros((2, 3)), np.eye(3)[None], np.eye(3)[:1],
+                          np.full((2, 1, 3), 0.5)),
+    "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
+                              np.ones(1), np.eye(3)[:1], True),
+}
