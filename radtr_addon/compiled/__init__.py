@@ -36,14 +36,19 @@ def _kernels():
     """The ``kernels`` module, as ``MODULE`` whether this package is ``radtr_addon`` (the CLI,
     the tests) or inside the add-on (``radtr.radtr_addon``, ``bl_ext.*``): numba's cache
     names the module its code came from, and an entry written under one name failed to load
-    under the other."""
-    if MODULE not in sys.modules:
-        spec = importlib.util.spec_from_file_location(MODULE, Path(__file__).with_name("kernels.py"))
+    under the other. Loaded afresh where its file is another or has changed since (an
+    updated add-on in a running Blender)."""
+    path = Path(__file__).with_name("kernels.py")
+    stamp = (str(path), path.stat().st_mtime_ns)
+    module = sys.modules.get(MODULE)
+    if getattr(module, "STAMP", None) != stamp:
+        spec = importlib.util.spec_from_file_location(MODULE, path)
         module = importlib.util.module_from_spec(spec)
+        module.STAMP = stamp
         sys.modules[MODULE] = module
         try:
             spec.loader.exec_module(module)
         except BaseException:
             del sys.modules[MODULE]
             raise
-    return sys.modules[MODULE]
+    return module
