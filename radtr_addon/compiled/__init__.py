@@ -38,17 +38,21 @@ def _kernels():
     names the module its code came from, and an entry written under one name failed to load
     under the other. Loaded afresh where its file is another or has changed since (an
     updated add-on in a running Blender)."""
-    path = Path(__file__).with_name("kernels.py")
+    path = Path(__file__).with_name("kernels.py").resolve()
     stamp = (str(path), path.stat().st_mtime_ns)
     module = sys.modules.get(MODULE)
     if getattr(module, "STAMP", None) != stamp:
         spec = importlib.util.spec_from_file_location(MODULE, path)
-        module = importlib.util.module_from_spec(spec)
-        module.STAMP = stamp
-        sys.modules[MODULE] = module
+        fresh = importlib.util.module_from_spec(spec)
+        fresh.STAMP = stamp
+        sys.modules[MODULE] = fresh
         try:
-            spec.loader.exec_module(module)
+            spec.loader.exec_module(fresh)
         except BaseException:
-            del sys.modules[MODULE]
+            if module is None:
+                del sys.modules[MODULE]
+            else:
+                sys.modules[MODULE] = module
             raise
+        module = fresh
     return module

@@ -68,9 +68,10 @@ def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) ->
     """``closed_form.polygon_factor``: each (point, triangle) pair clipped and summed in
     registers (the numpy form's temporaries, the clip's six slots and the contour's cross
     products, took most of a large scene's link evaluation)."""
+    if not len(points) == len(normals) == len(tris):
+        raise ValueError(f"points, normals and triangles of {len(points)}, {len(normals)}, {len(tris)} pairs")
     out = np.empty(points.shape[:2])
-    _polygon_factor(np.ascontiguousarray(points, np.float64), np.ascontiguousarray(normals, np.float64),
-           np.ascontiguousarray(tris, np.float64), out)
+    _polygon_factor(_reals(points), _reals(normals), _reals(tris), out)
     return out
 
 
@@ -99,8 +100,12 @@ def points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corne
     or on the input triangle of a cluster that u[..., 0] picks by area (its members
     ``order[span[e, 0]:span[e, 1]]``, ``cum_area`` their running area), by the square-root
     warp of u[..., 1:] (``sampling.triangle_points``)."""
+    if len(ends) != len(u):
+        raise ValueError(f"{len(ends)} nodes but uniforms for {len(u)}")
+    u = _reals(u)
     out, out_normal = np.empty(u.shape), np.empty(u.shape)
-    _points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, u, out, out_normal)
+    _points_on(_ints(ends), np.ascontiguousarray(cluster, np.bool_), _ints(span), _reals(cum_area), _ints(order),
+               _reals(node_tri), _reals(node_normal), _reals(corners), _reals(normals), u, out, out_normal)
     return out, out_normal
 
 
@@ -119,11 +124,26 @@ def member_shares(lo, count, link, order, normals, areas, w, sending):
     """``hierarchical.solve._member_shares``: per (link i, member t of its cluster end, the
     input triangles ``order[lo[i]:lo[i] + count[i]]``) the entry's link position, t, and t's
     share of link ``link[i]``'s light along w: A max(0, n.w) sent or max(0, -n.w) taken."""
+    if not len(lo) == len(count) == len(link):
+        raise ValueError(f"{len(lo)} starts, {len(count)} counts and {len(link)} links")
+    count = _ints(count)
     start = np.cumsum(count) - count
     n = int(count.sum())
     pos, tri, share = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
-    _member_shares(lo, count, start, link, order, normals, areas, w, sending, pos, tri, share)
+    _member_shares(_ints(lo), count, start, _ints(link), _ints(order), _reals(normals), _reals(areas), _reals(w),
+                   bool(sending), pos, tri, share)
     return pos, tri, share
+
+
+
+def _ints(a):
+    """Contiguous int64, the one type the kernels are built for (no rebuild at a caller's int32)."""
+    return np.ascontiguousarray(a, np.int64)
+
+
+def _reals(a):
+    """Contiguous float64, as ``_ints``."""
+    return np.ascontiguousarray(a, np.float64)
 
 
 #: Per wrapper, tiny arguments that build it and try it once.

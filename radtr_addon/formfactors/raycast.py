@@ -15,6 +15,7 @@ the triangle that the point sees.
 from __future__ import annotations
 
 import os
+import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -29,6 +30,19 @@ RAYS_PER_CALL = 1 << 20
 ORIGINS = ("area", "centroid")
 #: Rays per thread at least: fewer go in one call on one core.
 THREADED_RAYS = 1 << 16
+
+
+def _cores() -> int:
+    """Cores a batch of rays may use: this process's, but one inside a Dask worker (its
+    cluster already runs a process per core)."""
+    worker = sys.modules.get("distributed.worker")
+    if worker is not None:
+        try:
+            worker.get_worker()
+            return 1
+        except ValueError:
+            pass
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 class EmbreeRays:
@@ -145,11 +159,11 @@ class EmbreeRays:
 
     def _run(self, origins: np.ndarray, dirs: np.ndarray, **options):
         """Embree's ``run`` over every core: it lets go of Python's lock while it casts, so
-        chunks of the rays go on threads of their own (1.8x on 2 cores); small batches in one
-        call."""
-        n, cores = len(origins), len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-        k = min(cores or 1, n // THREADED_RAYS)
-        if k <= 1:
+        chunks of the rays go on threads of their own (1.8x on 2 cores); small batches, and
+        one direction for all origins, in one call."""
+        n = len(origins)
+        k = min(_cores(), n // THREADED_RAYS)
+        if k <= 1 or len(dirs) != n:
             return self._embree.run(origins, dirs, **options)
         cuts = np.linspace(0, n, k + 1).astype(np.int64)
 
