@@ -3,12 +3,13 @@ numpy forms, tested equal to the compiled ones beside each use, take over), and 
 load from numba's cache whichever name the package is imported under."""
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from radtr_addon import compiled
 
-ROOT = compiled.__file__.rsplit("/radtr_addon/", 1)[0]
+ROOT = str(Path(compiled.__file__).resolve().parents[2])
 
 
 def test_a_kernel_that_cannot_be_built_gives_none_and_says_why():

@@ -23,6 +23,7 @@ def _lambert(poly, k, x0, x1, x2, n0, n1, n2):
             total += gamma * (c0 * n0 + c1 * n1 + c2 * n2) / sin
     return abs(total) / (2 * np.pi)
 
+
 @njit(parallel=True, cache=True)
 def _polygon_factor(points, normals, tris, out):
     """out[m, p]: the form factor from points[m, p] facing normals[m] to the front of tris[m]."""
@@ -133,7 +134,6 @@ def member_shares(lo, count, link, order, normals, areas, w, sending):
     _member_shares(_ints(lo), count, start, _ints(link), _ints(order), _reals(normals), _reals(areas), _reals(w),
                    bool(sending), pos, tri, share)
     return pos, tri, share
-
 
 
 def _ints(a):

@@ -225,7 +225,7 @@ def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndar
     u = hashed_uniforms((end[cast], other[cast], t[cast]), 5)
     tc, oc = t[cast], other[cast]
     a, na = triangle_points(evaluator.corners[tc], u[0], u[1]), sc.normals[tc]
-    b, nb = evaluator.points_on(oc, np.ascontiguousarray(u[2:].T[:, None]))   # by area where oc is a cluster
+    b, nb = evaluator.points_on(oc, u[2:].T[:, None])                   # by area where oc is a cluster
     b, nb = b[:, 0], nb[:, 0]
     d = b - a
     faced = (np.einsum("ij,ij->i", na, d) > 0) & (np.einsum("ij,ij->i", nb, d) < 0)
