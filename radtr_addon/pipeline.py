@@ -313,14 +313,15 @@ class Solve:
         """The solver's result: ``leaves``, their radiosity ``B`` (what is shown: with the
         ambient term when asked) and ``vertices`` (a VertexRadiosity or the adaptive mesh's
         own vertex values)."""
-        self.result = r = self.solver.result()
         vertices = None
         if self.settings.solver == "hierarchical":
-            self.adaptive, self.result = r, r.result
-            self.leaves, r = r.leaves, r.result
+            self.adaptive = r = self.solver.result(gather=self.settings.gather_rays)
+            self.leaves, self.result = r.leaves, r.result
+            r = r.result
             self.stats.patches = self.adaptive.leaf_count
-            if not self.settings.gather_rays:
-                vertices = self.adaptive.mesh_vertex_values
+            vertices = self.adaptive.mesh_vertex_values         # gathered at the corners, if asked
+        else:
+            self.result = r = self.solver.result()
         self.stats.seconds.update(r.seconds)        # form factors and solve; refine, solve and clusters
         self.B = r.display(self.leaves.rho) if self.settings.ambient else r.B
         self.vertices = vertices or VertexRadiosity(self.leaves, self.B, self.settings.gather_rays)

@@ -27,6 +27,7 @@ import numpy as np
 from .. import compiled
 from ..errors import Cancelled, SceneError
 from ..formfactors.closed_form import polygon_factor
+from ..formfactors.coincident import twins
 from ..scene import PatchScene
 from ..solvers.result import SolveResult
 from . import quadratic
@@ -45,6 +46,8 @@ MAP_BATCH = 1_000_000
 CORNER_INSET = 0.01
 #: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
 CORNER_RAYS = 16
+#: Result vertices whose final gather is cast per batch (``_gathered_at``; bounds the memory).
+GATHER_BATCH = 4096
 #: Least reflectance a link's error is weighed by: an error of the light a receiver takes
 #: changes its B by rho times it, and the power books (absorbed) by the rest, so a black
 #: receiver's links are held to the bound too (an up-facing lamp 30 cm under a ceiling: 15%
@@ -266,6 +269,14 @@ class HierarchicalResult:
         corner = self.corner_B[part.patches].reshape(-1, 3)
         return np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=n)
                          for c in range(3)], axis=1) / np.maximum(total, 1e-300)[:, None]
+
+
+def _barycentric(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (m, 3) of points x (m, 3) in the planes of triangles (m, 3, 3)."""
+    e = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]], axis=1)
+    uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e), np.einsum("kic,kc->ki", e, x - tri[:, 0])[..., None])[..., 0]
+    lam = np.clip(np.column_stack([1 - uv.sum(axis=1), uv]), 0.0, 1.0)
+    return lam / lam.sum(axis=1, keepdims=True)
 
 
 def conforming(tris: np.ndarray, midpoint: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -807,6 +818,66 @@ class HierarchicalRadiosity:
         H = np.einsum("i,lic->lc", quadratic.MEAN, self._gather_of(B))
         return (A[:, None] * B).sum(axis=0), (A[:, None] * H).sum(axis=0)
 
+    def _corner_points(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray):
+        """(points, normals, back): one point per result vertex and side of a crease,
+        ``CORNER_INSET`` of the way to its leaves' centroids and lifted off the surface (a
+        vertex on a contact line takes the light of its own side), and for each corner of
+        ``tris`` (k x 3) its point's row."""
+        n = np.repeat(normals, 3, axis=0)
+        key = np.column_stack([tris.reshape(-1), np.round(n * 1e6)]).astype(np.int64)
+        _, first, back = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        back = back.reshape(-1)
+        count = np.bincount(back)
+        toward = np.stack([np.bincount(back, weights=c) for c in np.repeat(T.mean(axis=1), 3, axis=0).T], 1)
+        p = P.reshape(-1, 3)[first]
+        p = p + CORNER_INSET * (toward / count[:, None] - p) + self.caster.epsilon * n[first]
+        return p, n[first], back
+
+    def _gathered_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
+                     rays: int) -> np.ndarray:
+        """The leaves' reflected light (k x 3, 3) at the corners of the result triangles by a
+        final gather: ``rays`` stratified cosine rays per vertex (``_corner_points``), each
+        taking the radiosity less emission of the leaf whose front it hits (the hidden backs
+        of two-sided lamps too). A link hands its receiver the light of a partly seen source
+        at the source's mean radiosity; many such links, each within epsilon, brought the
+        furniture of a room the hot ceiling over its lamp, hidden but for a 1 cm slot, 15-60%
+        too bright (2-3% of each object's light). Emitters and the outside lights are added
+        at the corners exactly (``_emitters_at``, ``nodes.external``)."""
+        from ..formfactors.raycast import EmbreeRays
+        from ..sampling import cosine_directions, grid_side, stratified
+
+        nd, sc = self.nodes, self.scene
+        leaves = self.leaf_ids
+        caster = EmbreeRays(PatchScene(nd.all_vertices(), nd.vids[leaves], nd.rho[leaves], nd.E[leaves],
+                                       sc.object_index[nd.root[leaves]], sc.material_index[nd.root[leaves]]), 1)
+        reflected = self.B - sc.emission[nd.root[leaves]]
+        twin = twins(sc.vertices, sc.triangles, sc.normals)
+        row_of = np.full(nd.size, -1)
+        row_of[leaves] = np.arange(len(leaves))
+        p, n, back = self._corner_points(tris, P, T, normals)
+        m = grid_side(rays)
+        H = np.zeros((len(p), 3))
+        for start in range(0, len(p), GATHER_BATCH):
+            i = np.arange(start, min(start + GATHER_BATCH, len(p)))
+            rng = np.random.default_rng((self.settings.seed, 3, start))
+            u, v = stratified(m, rng.random((len(i), m * m)), rng.random((len(i), m * m)))
+            dirs = cosine_directions(u, v, n[i]).reshape(-1, 3)
+            origins = np.repeat(p[i], m * m, axis=0)
+            dist, hit = caster.first_hit(origins, dirs)
+            row = np.where(hit >= 0, hit, -1)
+            h = np.flatnonzero(hit >= 0)
+            behind = h[np.einsum("kc,kc->k", dirs[h], caster.scene.normals[hit[h]]) > 0]
+            row[behind] = -1
+            other = twin[nd.root[leaves[hit[behind]]]]      # the back of a two-sided face: its twin's leaf
+            behind, other = behind[other >= 0], other[other >= 0]
+            if len(behind):
+                x = origins[behind] + dist[behind, None] * dirs[behind]
+                leaf, _ = self.leaf_at(other, _barycentric(x, sc.vertices[sc.triangles[other]]))
+                row[behind] = row_of[leaf]
+            got = np.where(row[:, None] >= 0, reflected[np.maximum(row, 0)], 0.0)
+            H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
+        return H[back]
+
     def _emitters_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
                      emitters: np.ndarray) -> np.ndarray:
         """The emitting triangles' light (k x 3, 3) at the corners of the result triangles
@@ -820,15 +891,8 @@ class HierarchicalRadiosity:
 
         sc = self.scene
         lights = [Light.polygon_light(f"triangle {t}", sc.vertices[sc.triangles[t]], sc.emission[t]) for t in emitters]
-        n = np.repeat(normals, 3, axis=0)
-        key = np.column_stack([tris.reshape(-1), np.round(n * 1e6)]).astype(np.int64)
-        _, first, back = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        back = back.reshape(-1)
-        count = np.bincount(back)
-        toward = np.stack([np.bincount(back, weights=c) for c in np.repeat(T.mean(axis=1), 3, axis=0).T], 1)
-        p = P.reshape(-1, 3)[first]
-        p = p + CORNER_INSET * (toward / count[:, None] - p) + self.caster.epsilon * n[first]
-        return irradiance_at(p, n[first], lights, self.caster, samples=CORNER_RAYS, cull=0.0)[0][back]
+        p, n, back = self._corner_points(tris, P, T, normals)
+        return irradiance_at(p, n, lights, self.caster, samples=CORNER_RAYS, cull=0.0)[0][back]
 
     def resume(self, more_rounds: int):
         """Allow ``more_rounds`` refine-solve rounds after the cap."""
@@ -841,12 +905,14 @@ class HierarchicalRadiosity:
             pass
         return self.result()
 
-    def result(self, corners: bool = True) -> HierarchicalResult:
+    def result(self, corners: bool = True, gather: int = 0) -> HierarchicalResult:
         """The shown leaves as a PatchScene with their B, H and the books. With ``corners``
         (the written result) the leaves are cut at their T-vertices (``conforming``) and each
         triangle's corners get the leaf's quadratic there and the outside lights (Light
         objects, the World) at the corner itself, not their mean over the leaf, so a sun
-        patch's edge is as sharp at the vertices as the leaves allow."""
+        patch's edge is as sharp at the vertices as the leaves allow. With ``gather`` rays,
+        the leaves' reflected light reaches each corner by a final gather (``_gathered_at``)
+        instead of the leaf's quadratic."""
         nd, sc = self.nodes, self.scene
         leaves = self.leaf_ids
         roots = nd.root[leaves]
@@ -882,12 +948,17 @@ class HierarchicalRadiosity:
             uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e)[:, None],
                                  np.einsum("kic,kpc->kpi", e, P - T[:, None, 0])[..., None])[..., 0]
             bary = np.concatenate([1 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)      # (k, 3, 3)
-            H6 = self.H6[at]
             emitters = np.flatnonzero(sc.emission.max(axis=1) > 0)
-            if len(emitters):
-                H6 = H6 - self._emission_gather()[at]
-            H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
-                                     H6), 0.0)                            # a quadratic may dip below 0
+            if gather:
+                t0 = time.perf_counter()
+                H = self._gathered_at(tris, P, T, nd.normal[leaf], gather).reshape(len(leaf), 3, 3)
+                res.seconds["vertex_gather"] = time.perf_counter() - t0
+            else:
+                H6 = self.H6[at]
+                if len(emitters):
+                    H6 = H6 - self._emission_gather()[at]
+                H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
+                                         H6), 0.0)                        # a quadratic may dip below 0
             if len(emitters):
                 H = H + self._emitters_at(tris, P, T, nd.normal[leaf], emitters).reshape(H.shape)
             if nd.external is not None:
