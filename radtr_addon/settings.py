@@ -63,7 +63,7 @@ class Settings:
     precision: str = option("float64", "accumulation precision", PRECISIONS)
     ambient: bool = option(False, "shooting: show unshot light as Cohen's ambient term")
     gather_rays: int = option(0, "final gather of the vertex colours with this many rays per vertex "
-                                        "(0: patch mean; hierarchical: each leaf's quadratic)")
+                                        "(0: patch mean, or with hierarchical, each leaf's quadratic)")
     sky: str = option("none", "apply a research sky through sky form factors", SKIES)
     sky_radiance: float = option(1.0, "uniform radiance, or the CIE sky's zenith radiance (W/m^2/sr)")
     sky_step: float = option(10.0, "dome points every this many degrees of azimuth (the seed's alpha)")

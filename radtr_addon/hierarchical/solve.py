@@ -46,8 +46,9 @@ MAP_BATCH = 1_000_000
 CORNER_INSET = 0.01
 #: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
 CORNER_RAYS = 16
-#: Result vertices whose final gather is cast per batch (``_gathered_at``; bounds the memory).
-GATHER_BATCH = 4096
+#: Rays of the final gather cast per batch (``_gathered_at``): bounds its memory to a few
+#: hundred MB whatever the rays per vertex (4,096 vertices a batch at 256 rays).
+GATHER_BATCH_RAYS = 1 << 20
 #: Least reflectance a link's error is weighed by: an error of the light a receiver takes
 #: changes its B by rho times it, and the power books (absorbed) by the rest, so a black
 #: receiver's links are held to the bound too (an up-facing lamp 30 cm under a ceiling: 15%
@@ -836,7 +837,8 @@ class HierarchicalRadiosity:
     def _gathered_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
                      rays: int) -> np.ndarray:
         """The leaves' reflected light (k x 3, 3) at the corners of the result triangles by a
-        final gather: ``rays`` stratified cosine rays per vertex (``_corner_points``), each
+        final gather: ``rays`` stratified cosine rays per vertex (rounded to a square grid,
+        ``grid_side``; ``_corner_points``), each
         taking the radiosity less emission of the leaf whose front it hits (the hidden backs
         of two-sided lamps too). A link hands its receiver the light of a partly seen source
         at the source's mean radiosity; many such links, each within epsilon, brought the
@@ -856,9 +858,10 @@ class HierarchicalRadiosity:
         row_of[leaves] = np.arange(len(leaves))
         p, n, back = self._corner_points(tris, P, T, normals)
         m = grid_side(rays)
+        batch = max(1, GATHER_BATCH_RAYS // (m * m))
         H = np.zeros((len(p), 3))
-        for start in range(0, len(p), GATHER_BATCH):
-            i = np.arange(start, min(start + GATHER_BATCH, len(p)))
+        for start in range(0, len(p), batch):
+            i = np.arange(start, min(start + batch, len(p)))
             rng = np.random.default_rng((self.settings.seed, 3, start))
             u, v = stratified(m, rng.random((len(i), m * m)), rng.random((len(i), m * m)))
             dirs = cosine_directions(u, v, n[i]).reshape(-1, 3)
