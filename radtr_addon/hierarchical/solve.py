@@ -30,6 +30,7 @@ from ..formfactors.closed_form import polygon_factor
 from ..formfactors.coincident import twins
 from ..scene import PatchScene
 from ..solvers.result import SolveResult
+from ..textures import barycentric
 from . import quadratic
 from .contacts import Proximity
 from .links import Evaluator, Links, direction_cosines, expand, ranges
@@ -270,14 +271,6 @@ class HierarchicalResult:
         corner = self.corner_B[part.patches].reshape(-1, 3)
         return np.stack([np.bincount(idx, weights=w * corner[:, c], minlength=n)
                          for c in range(3)], axis=1) / np.maximum(total, 1e-300)[:, None]
-
-
-def _barycentric(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates (m, 3) of points x (m, 3) in the planes of triangles (m, 3, 3)."""
-    e = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]], axis=1)
-    uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e), np.einsum("kic,kc->ki", e, x - tri[:, 0])[..., None])[..., 0]
-    lam = np.clip(np.column_stack([1 - uv.sum(axis=1), uv]), 0.0, 1.0)
-    return lam / lam.sum(axis=1, keepdims=True)
 
 
 def conforming(tris: np.ndarray, midpoint: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -838,13 +831,13 @@ class HierarchicalRadiosity:
                      rays: int) -> np.ndarray:
         """The leaves' reflected light (k x 3, 3) at the corners of the result triangles by a
         final gather: ``rays`` stratified cosine rays per vertex (rounded to a square grid,
-        ``grid_side``; ``_corner_points``), each
-        taking the radiosity less emission of the leaf whose front it hits (the hidden backs
-        of two-sided lamps too). A link hands its receiver the light of a partly seen source
-        at the source's mean radiosity; many such links, each within epsilon, brought the
-        furniture of a room the hot ceiling over its lamp, hidden but for a 1 cm slot, 15-60%
-        too bright (2-3% of each object's light). Emitters and the outside lights are added
-        at the corners exactly (``_emitters_at``, ``nodes.external``)."""
+        ``grid_side``; ``_corner_points``), each taking the radiosity less emission of the
+        leaf whose front it hits (the hidden backs of two-sided lamps too). A link hands its
+        receiver the light of a partly seen source at the source's mean radiosity; many such
+        links, each within epsilon, brought the furniture of a room the hot ceiling over its
+        lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of each object's light).
+        Emitters and the outside lights are added at the corners exactly (``_emitters_at``,
+        ``nodes.external``)."""
         from ..formfactors.raycast import EmbreeRays
         from ..sampling import cosine_directions, grid_side, stratified
 
@@ -854,8 +847,6 @@ class HierarchicalRadiosity:
                                        sc.object_index[nd.root[leaves]], sc.material_index[nd.root[leaves]]), 1)
         reflected = self.B - sc.emission[nd.root[leaves]]
         twin = twins(sc.vertices, sc.triangles, sc.normals)
-        row_of = np.full(nd.size, -1)
-        row_of[leaves] = np.arange(len(leaves))
         p, n, back = self._corner_points(tris, P, T, normals)
         m = grid_side(rays)
         batch = max(1, GATHER_BATCH_RAYS // (m * m))
@@ -867,7 +858,7 @@ class HierarchicalRadiosity:
             dirs = cosine_directions(u, v, n[i]).reshape(-1, 3)
             origins = np.repeat(p[i], m * m, axis=0)
             dist, hit = caster.first_hit(origins, dirs)
-            row = np.where(hit >= 0, hit, -1)
+            row = hit.copy()                                 # rows of leaf_ids, -1 for none
             h = np.flatnonzero(hit >= 0)
             behind = h[np.einsum("kc,kc->k", dirs[h], caster.scene.normals[hit[h]]) > 0]
             row[behind] = -1
@@ -875,8 +866,8 @@ class HierarchicalRadiosity:
             behind, other = behind[other >= 0], other[other >= 0]
             if len(behind):
                 x = origins[behind] + dist[behind, None] * dirs[behind]
-                leaf, _ = self.leaf_at(other, _barycentric(x, sc.vertices[sc.triangles[other]]))
-                row[behind] = row_of[leaf]
+                leaf, _ = self.leaf_at(other, barycentric(x, sc.vertices[sc.triangles[other]]))
+                row[behind] = np.searchsorted(leaves, leaf)
             got = np.where(row[:, None] >= 0, reflected[np.maximum(row, 0)], 0.0)
             H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
         return H[back]
@@ -947,10 +938,6 @@ class HierarchicalRadiosity:
                           "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
         if corners:
             P, T = verts[tris], nd.tri[leaf]                            # (k, 3 corners, 3), (k, 3, 3)
-            e = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], axis=1)
-            uv = np.linalg.solve(np.einsum("kic,kjc->kij", e, e)[:, None],
-                                 np.einsum("kic,kpc->kpi", e, P - T[:, None, 0])[..., None])[..., 0]
-            bary = np.concatenate([1 - uv.sum(axis=-1, keepdims=True), uv], axis=-1)      # (k, 3, 3)
             emitters = np.flatnonzero(sc.emission.max(axis=1) > 0)
             if gather:
                 t0 = time.perf_counter()
@@ -960,7 +947,8 @@ class HierarchicalRadiosity:
                 H6 = self.H6[at]
                 if len(emitters):
                     H6 = H6 - self._emission_gather()[at]
-                H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary.reshape(-1, 3)).reshape(len(leaf), 3, 6),
+                bary = barycentric(P.reshape(-1, 3), np.repeat(T, 3, axis=0))        # corners in their leaves
+                H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary).reshape(len(leaf), 3, 6),
                                          H6), 0.0)                        # a quadratic may dip below 0
             if len(emitters):
                 H = H + self._emitters_at(tris, P, T, nd.normal[leaf], emitters).reshape(H.shape)
