@@ -12,7 +12,7 @@ from bpy.props import (
 )
 
 from .radtr_addon.lowrank.backends import BACKENDS, DEFAULT_BACKEND
-from .radtr_addon.settings import Settings
+from .radtr_addon.settings import AUTO_GATHER_RAYS, Settings
 
 _D = Settings()
 
@@ -113,9 +113,11 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Ambient Term", default=_D.ambient,
         description="Shooting: add the light not yet shot as an even ambient term when showing a partial solve")
     gather_rays: IntProperty(
-        name="Vertex Gather", default=_D.gather_rays, min=0, soft_max=4096,
+        name="Vertex Gather", default=_D.gather_rays, min=-1, soft_max=4096,
         description="Rays per vertex for a final gather of the solved light into the vertex colours "
-                    "(sharper corners and shadows); 0 shows the mean of the patches around each vertex")
+                    "(sharper corners and shadows); 0 shows the mean of the patches around each vertex "
+                    "(hierarchical: each leaf's quadratic); -1 is auto: "
+                    f"{AUTO_GATHER_RAYS} with the hierarchical solver, 0 with the others")
     lowrank_level: IntProperty(
         name="Low-Rank Level", default=1, min=0, max=12,
         description="Hierarchy level whose nodes are the flashlight's clusters: finer is more exact, "

@@ -153,7 +153,8 @@ class Solve:
         self.hierarchy, self.rows = None, None
         with self._stage("solver_init"):
             self.solver = HierarchicalRadiosity(scene, HierarchicalSettings(
-                epsilon=settings.quality, tolerance=settings.tolerance, max_sweeps=settings.max_iterations),
+                epsilon=settings.quality, tolerance=settings.tolerance, max_sweeps=settings.max_iterations,
+                gather_rays=settings.vertex_gather),
                 external=external, shown=shown)
         self.leaves = base
 
@@ -259,6 +260,8 @@ class Solve:
         s = self.solver
         if s.done:
             return 1.0
+        if getattr(s, "gathering", False):
+            return s.gathered
         r = max(s.residual, 1e-300)
         by_res = np.log(r) / np.log(max(self.settings.tolerance, 1e-300)) if r < 1 else 0.0
         return float(np.clip(max(by_res, s.iterations / s.max_iterations), 0.0, 1.0))
@@ -267,7 +270,7 @@ class Solve:
     def readout(self) -> str:
         """One line on where the solve stands, for the status bar, the N-panel and the CLI."""
         s = self.solver
-        if getattr(s, "refining", False):                 # no residual to speak of yet
+        if getattr(s, "refining", False) or getattr(s, "gathering", False):     # no residual to speak of
             return f"{s.phase}, {s.seconds:.1f} s"
         eta = self.eta
         left = f", about {eta:,.0f} s left" if eta is not None else ""
@@ -315,7 +318,7 @@ class Solve:
         own vertex values)."""
         vertices = None
         if self.settings.solver == "hierarchical":
-            self.adaptive = r = self.solver.result(gather=self.settings.gather_rays)
+            self.adaptive = r = self.solver.result()
             self.leaves, self.result = r.leaves, r.result
             r = r.result
             self.stats.patches = self.adaptive.leaf_count
@@ -324,7 +327,7 @@ class Solve:
             self.result = r = self.solver.result()
         self.stats.seconds.update(r.seconds)        # form factors and solve; refine, solve and clusters
         self.B = r.display(self.leaves.rho) if self.settings.ambient else r.B
-        self.vertices = vertices or VertexRadiosity(self.leaves, self.B, self.settings.gather_rays)
+        self.vertices = vertices or VertexRadiosity(self.leaves, self.B, self.settings.vertex_gather)
 
     def finish(self) -> "Solve":
         """Conclude the solve (``B``, ``leaves``, ``vertices``) and log its summary."""

@@ -104,7 +104,7 @@ NAN = float("nan")
     (dict(max_reflectance=NAN), "max reflectance must be between 0 and 1, got nan"),
     (dict(max_reflectance=-1.0), "max reflectance must be between 0 and 1, got -1.0"),
     (dict(sky="uniform", sky_radiance=NAN), "sky radiance must be 0 or more, got nan"),
-    (dict(gather_rays=-4), r"gather rays must be 0 \(patch mean\) or more, got -4"),
+    (dict(gather_rays=-4), r"gather rays must be -1 \(auto\), 0 \(none\) or more, got -4"),
     (dict(exposure=NAN), "exposure must be 0 or more, got nan"),
     (dict(exposure=-2.0), "exposure must be 0 or more, got -2.0"),
     (dict(tolerance=NAN), "tolerance must be 0 or more, got nan"),
@@ -159,7 +159,7 @@ def poses(tmp_path, **pose):
 @pytest.mark.parametrize("args, message", [
     (["solve", "cornell_box", "--max-reflectance", "nan"], "max reflectance must be between 0 and 1, got nan"),
     (["solve", "cornell_box", "--sky", "cie", "--sky-radiance", "nan"], "sky radiance must be 0 or more, got nan"),
-    (["solve", "cornell_box", "--gather-rays", "-1"], "gather rays must be 0 .* got -1"),
+    (["solve", "cornell_box", "--gather-rays", "-2"], "gather rays must be -1 .* got -2"),
     (["solve", "cornell_box", "--exposure", "-1"], "exposure must be 0 or more, got -1.0"),
     (["solve", "cornell_box", "--sky", "uniform", "--sky-step", "0.001"], "a sky dome of 32,400,000,000 points"),
     (["solve", "cornell_box", "--out", "{tmp}/missing/r.blend"], "--out .*: the folder .*missing does not exist"),

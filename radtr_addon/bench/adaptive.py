@@ -3,7 +3,7 @@
 For the bundled ``cornell_box`` and ``furnished_room`` (the ``atrium`` is left out: its
 hierarchical solve takes about 10 minutes at Quality 0.1, and its bakes longer) and each
 configuration (uniform Embree patches with Jacobi at two patch counts; hierarchical at
-several Quality values, each with a final gather of ``GATHER_RAYS`` per vertex): a solve
+several Quality values, each with its default final gather, ``settings.AUTO_GATHER_RAYS``): a solve
 as a user runs it (``pipeline.solve``, result meshes written), then a Cycles bake at the
 vertices of those result meshes (``REFERENCE_SPP`` samples; emitters left out) as the
 reference. Table ``adaptive``: leaves, links (and n^2, the uniform matrix), seconds, the
@@ -26,9 +26,6 @@ REFERENCE_SPP = 1024
 CURVE_SPP = (16, 64, 256)
 QUALITIES = (0.1, 0.03, 0.01)
 UNIFORM_PATCHES = (2000, 8000)
-#: Final gather rays per result vertex of the hierarchical solves (their links' own corner
-#: values put a room's furniture 2-3% bright: ``HierarchicalRadiosity._gathered_at``).
-GATHER_RAYS = 256
 
 
 class ResultVertices:
@@ -86,7 +83,7 @@ def configurations(quick: bool) -> list[tuple[str, dict]]:
     uniform = [(f"uniform {n:,}", {"solver": "jacobi", "method": "embree", "rays": 1024, "max_area": 0.0,
                                    "tolerance": 1e-4, "patches": n}) for n in UNIFORM_PATCHES[:1 if quick else 2]]
     hier = [(f"hierarchical {q:g}",
-             {"solver": "hierarchical", "quality": q, "tolerance": 1e-4, "gather_rays": GATHER_RAYS})
+             {"solver": "hierarchical", "quality": q, "tolerance": 1e-4})
             for q in (QUALITIES[:2] if quick else QUALITIES)]
     return uniform + hier
 

@@ -39,7 +39,7 @@ class SolveJob(Solve):
         with self._stage("write"):
             self.objects = write_results(self.bl_scene, self.extraction, self.leaves, self.B,
                                          self.settings.exposure, self.settings.mode, self.vertices)
-        if self.settings.gather_rays and self.settings.solver != "hierarchical":   # its gather: a stage of its own
+        if self.settings.vertex_gather and self.settings.solver != "hierarchical":   # its gather: a stage of its own
             self.stats.seconds["vertex_gather"] = self.vertices.seconds
             self.stats.seconds["write"] -= self.vertices.seconds
         self.log(f"RadTR: {self.summary()}")

@@ -47,7 +47,7 @@ MAP_BATCH = 1_000_000
 CORNER_INSET = 0.01
 #: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
 CORNER_RAYS = 16
-#: Rays of the final gather cast per batch (``_gathered_at``): bounds its memory to a few
+#: Rays of the final gather cast per batch (``_gather_steps``): bounds its memory to a few
 #: hundred MB whatever the rays per vertex (4,096 vertices a batch at 256 rays).
 GATHER_BATCH_RAYS = 1 << 20
 #: Least reflectance a link's error is weighed by: an error of the light a receiver takes
@@ -73,6 +73,7 @@ class HierarchicalSettings:
     tolerance: float = 1e-4        # Jacobi stop: residual power / emitted
     max_rounds: int = 8
     max_sweeps: int = 400          # Jacobi sweeps per round (Max Iterations)
+    gather_rays: int = 0           # final gather at the result vertices once solved (0: leaf quadratics)
     seed: int = 0
 
 
@@ -353,6 +354,9 @@ class HierarchicalRadiosity:
         self.done = False
         self._round = None                # the refine in progress (``_round_steps``)
         self._progress = ""               # what it is doing, for ``phase``
+        self._final = None                # the final gather in progress (``_gather_steps``)
+        self.gathered = 0.0               # its fraction done
+        self._memo: dict = {}             # the result mesh and the gather, by the solve they are of
         self._t_start = time.perf_counter()
         self.tol, self.max_iterations = s.tolerance, s.max_rounds
 
@@ -371,9 +375,16 @@ class HierarchicalRadiosity:
         return self._round is not None
 
     @property
+    def gathering(self) -> bool:
+        """True while the final gather at the result vertices is under way (``step``)."""
+        return self._final is not None
+
+    @property
     def phase(self) -> str:
         if self.refining:
             return f"hierarchical round {len(self.rounds) + 1}, {self._progress}"
+        if self.gathering:
+            return f"final gather at the vertices, {self.settings.gather_rays:,} rays each: {self.gathered:.0%}"
         if self.done:
             return f"hierarchical, {len(self.rounds)} rounds, {len(self.links):,} links"
         return f"hierarchical round {len(self.rounds)} solved, {len(self.links):,} links"
@@ -730,9 +741,21 @@ class HierarchicalRadiosity:
 
     def step(self, count: int = 1, cancel=None) -> bool:
         """One slice of a refine-solve round (whatever ``count``): a slice of the refine
-        (``_round_steps``), or, once it is done, the solve; True when no link needed
-        refining (or the rounds ran out)."""
+        (``_round_steps``), or, once it is done, the solve; once no link needs refining (or
+        the rounds ran out), a batch of the final gather if ``gather_rays``. True when done."""
         t0 = time.perf_counter()
+        if self._final is not None:
+            try:
+                self.gathered = next(self._final)
+                return False
+            except StopIteration as stop:
+                self._memo["gather", self.settings.gather_rays] = stop.value
+                self._final = None
+                self.done = True
+                return True
+            finally:
+                self.stage_seconds["vertex_gather"] = self.stage_seconds.get("vertex_gather", 0.0) + (
+                    time.perf_counter() - t0)
         if self._round is None:
             self._round = self._round_steps()
         try:
@@ -751,6 +774,8 @@ class HierarchicalRadiosity:
                             "leaves": int(len(self.leaf_ids)), "sweeps": self.sweeps,
                             "seconds": round(time.perf_counter() - self._t_start, 3)})
         self.done = refined == 0 or len(self.rounds) >= self.settings.max_rounds
+        if self.done and self.settings.gather_rays > 0:
+            self._final, self.gathered, self.done = self._gather_steps(self.settings.gather_rays), 0.0, False
         return self.done
 
     def leaf_at(self, t: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -827,27 +852,28 @@ class HierarchicalRadiosity:
         p = p + CORNER_INSET * (toward / count[:, None] - p) + self.caster.epsilon * n[first]
         return p, n[first], back
 
-    def _gathered_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
-                     rays: int) -> np.ndarray:
-        """The leaves' reflected light (k x 3, 3) at the corners of the result triangles by a
-        final gather: ``rays`` stratified cosine rays per vertex (rounded to a square grid,
-        ``grid_side``; ``_corner_points``), each taking the radiosity less emission of the
-        leaf whose front it hits (the hidden backs of two-sided lamps too). A link hands its
-        receiver the light of a partly seen source at the source's mean radiosity; many such
-        links, each within epsilon, brought the furniture of a room the hot ceiling over its
-        lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of each object's light).
-        Emitters and the outside lights are added at the corners exactly (``_emitters_at``,
-        ``nodes.external``)."""
+    def _gather_steps(self, rays: int):
+        """A final gather of the leaves' reflected light at the corners of the result mesh
+        (``_result_mesh``), in batches of ``GATHER_BATCH_RAYS``: yields the fraction done,
+        returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex (rounded to a
+        square grid, ``grid_side``; ``_corner_points``), each taking the radiosity less
+        emission of the leaf whose front it hits (the hidden backs of two-sided lamps too). A
+        link hands its receiver the light of a partly seen source at the source's mean
+        radiosity; many such links, each within epsilon, brought the furniture of a room the
+        hot ceiling over its lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of
+        each object's light). Emitters and the outside lights are added at the corners
+        exactly (``_emitters_at``, ``nodes.external``)."""
         from ..formfactors.raycast import EmbreeRays
         from ..sampling import cosine_directions, grid_side, stratified
 
         nd, sc = self.nodes, self.scene
         leaves = self.leaf_ids
+        _, leaf, _, tris, P, T = self._result_mesh()
         caster = EmbreeRays(PatchScene(nd.all_vertices(), nd.vids[leaves], nd.rho[leaves], nd.E[leaves],
                                        sc.object_index[nd.root[leaves]], sc.material_index[nd.root[leaves]]), 1)
         reflected = self.B - sc.emission[nd.root[leaves]]
         twin = twins(sc.vertices, sc.triangles, sc.normals)
-        p, n, back = self._corner_points(tris, P, T, normals)
+        p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
         m = grid_side(rays)
         batch = max(1, GATHER_BATCH_RAYS // (m * m))
         H = np.zeros((len(p), 3))
@@ -866,11 +892,35 @@ class HierarchicalRadiosity:
             behind, other = behind[other >= 0], other[other >= 0]
             if len(behind):
                 x = origins[behind] + dist[behind, None] * dirs[behind]
-                leaf, _ = self.leaf_at(other, barycentric(x, sc.vertices[sc.triangles[other]]))
-                row[behind] = np.searchsorted(leaves, leaf)
+                leaf_hit, _ = self.leaf_at(other, barycentric(x, sc.vertices[sc.triangles[other]]))
+                row[behind] = np.searchsorted(leaves, leaf_hit)
             got = np.where(row[:, None] >= 0, reflected[np.maximum(row, 0)], 0.0)
             H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
-        return H[back]
+            yield (i[-1] + 1) / len(p)
+        return H[back].reshape(len(leaf), 3, 3)
+
+    def _result_mesh(self):
+        """The shown leaves cut at their T-vertices (``conforming``; a leaf with a T-vertex on
+        an edge fans from a new centre vertex): (at, leaf, verts, tris, P, T) with ``at`` each
+        result triangle's row of ``leaf_ids``/B/H, ``leaf`` its leaf node, ``P`` its corner
+        points and ``T`` its leaf's corners (k, 3, 3). Kept while the solve stands, with the
+        final gather made of it (``_memo``)."""
+        state = (self.sweeps, len(self.rounds))
+        if self._memo.get("state") != state:
+            self._memo = {"state": state}
+        if "mesh" not in self._memo:
+            nd = self.nodes
+            shown = np.flatnonzero(self.shown[nd.root[self.leaf_ids]])
+            ids = self.leaf_ids[shown]
+            verts = nd.all_vertices()
+            tris, row, centre = conforming(nd.vids[ids], nd.midpoint)
+            fan = np.unique(row[centre.any(axis=1)])
+            new_id = np.full(len(ids), -1)
+            new_id[fan] = len(verts) + np.arange(len(fan))
+            tris = np.where(centre, new_id[row][:, None], tris)
+            verts = np.concatenate([verts, nd.tri[ids[fan]].mean(axis=1)])
+            self._memo["mesh"] = shown[row], ids[row], verts, tris, verts[tris], nd.tri[ids[row]]
+        return self._memo["mesh"]
 
     def _emitters_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
                      emitters: np.ndarray) -> np.ndarray:
@@ -899,15 +949,18 @@ class HierarchicalRadiosity:
             pass
         return self.result()
 
-    def result(self, corners: bool = True, gather: int = 0) -> HierarchicalResult:
+    def result(self, corners: bool = True, gather: int | None = None) -> HierarchicalResult:
         """The shown leaves as a PatchScene with their B, H and the books. With ``corners``
-        (the written result) the leaves are cut at their T-vertices (``conforming``) and each
-        triangle's corners get the leaf's quadratic there and the outside lights (Light
+        (the written result) the leaves are cut at their T-vertices (``_result_mesh``) and
+        each triangle's corners get the leaf's quadratic there and the outside lights (Light
         objects, the World) at the corner itself, not their mean over the leaf, so a sun
-        patch's edge is as sharp at the vertices as the leaves allow. With ``gather`` rays,
-        the leaves' reflected light reaches each corner by a final gather (``_gathered_at``)
-        instead of the leaf's quadratic."""
+        patch's edge is as sharp at the vertices as the leaves allow. With ``gather`` rays
+        (None: the settings' ``gather_rays``, made while stepping), the leaves' reflected light
+        reaches each corner by a final gather (``_gather_steps``) instead of the quadratic."""
+        from ..tasks import run
+
         nd, sc = self.nodes, self.scene
+        gather = self.settings.gather_rays if gather is None else gather
         leaves = self.leaf_ids
         roots = nd.root[leaves]
         A = nd.area[leaves]
@@ -916,19 +969,11 @@ class HierarchicalRadiosity:
         received = (self.H * A[:, None]).sum(axis=0)
         leaving = (self.B * A[:, None]).sum(axis=0)
         unshot = ((nd.E[leaves] + nd.rho[leaves] * self.H - self.B) * A[:, None]).sum(axis=0)
-        shown = np.flatnonzero(self.shown[roots])                   # rows of leaf_ids, B, H, H6
-        ids = leaves[shown]
-        verts = nd.all_vertices()
         if corners:
-            tris, row, centre = conforming(nd.vids[ids], nd.midpoint)
-            fan = np.unique(row[centre.any(axis=1)])
-            new_id = np.full(len(ids), -1)
-            new_id[fan] = len(verts) + np.arange(len(fan))
-            tris = np.where(centre, new_id[row][:, None], tris)
-            verts = np.concatenate([verts, nd.tri[ids[fan]].mean(axis=1)])
+            at, leaf, verts, tris, P, T = self._result_mesh()
         else:
-            tris, row = nd.vids[ids], np.arange(len(ids))
-        leaf, at = ids[row], shown[row]
+            at = np.flatnonzero(self.shown[roots])                 # rows of leaf_ids, B, H, H6
+            leaf, verts, tris = leaves[at], nd.all_vertices(), nd.vids[leaves[at]]
         patches = PatchScene(verts, tris, nd.rho[leaf], nd.E[leaf], sc.object_index[nd.root[leaf]],
                              sc.material_index[nd.root[leaf]], list(sc.object_names), list(sc.material_names))
         residual = self.history[-1] if self.history else 1.0
@@ -937,12 +982,13 @@ class HierarchicalRadiosity:
                           dict(self.stage_seconds),
                           "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
         if corners:
-            P, T = verts[tris], nd.tri[leaf]                            # (k, 3 corners, 3), (k, 3, 3)
             emitters = np.flatnonzero(sc.emission.max(axis=1) > 0)
             if gather:
-                t0 = time.perf_counter()
-                H = self._gathered_at(tris, P, T, nd.normal[leaf], gather).reshape(len(leaf), 3, 3)
-                res.seconds["vertex_gather"] = time.perf_counter() - t0
+                if ("gather", gather) not in self._memo:
+                    t0 = time.perf_counter()
+                    self._memo["gather", gather] = run(self._gather_steps(gather))
+                    res.seconds["vertex_gather"] = time.perf_counter() - t0
+                H = self._memo["gather", gather]
             else:
                 H6 = self.H6[at]
                 if len(emitters):
