@@ -4,6 +4,7 @@ import bpy
 
 from ..operators.session import running
 from ..radtr_addon.formfactors.methods import LEVELLED_SPLITS
+from ..radtr_addon.settings import Settings
 
 
 class _RadTRPanel:
@@ -38,6 +39,9 @@ class RADTR_PT_main(_RadTRPanel, bpy.types.Panel):
         col.prop(s, "tolerance")
         col.prop(s, "max_iterations")
         col.prop(s, "gather_rays")
+        if s.gather_rays < 0:                              # auto: say what it resolves to
+            rays = Settings.of(s).vertex_gather
+            col.label(text=f"Auto: {rays:,} rays a vertex" if rays else "Auto: patch means", icon="INFO")
         col.prop(s, "sky")
         if s.sky != "none":
             col.prop(s, "sky_radiance")

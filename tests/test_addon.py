@@ -66,15 +66,15 @@ class RecordingLayout:
     one that does not exist."""
 
     def __init__(self):
-        self.props, self.operators = [], []
+        self.props, self.operators, self.labels = [], [], []
 
     def column(self, **_):
         return self
 
     row = box = column
 
-    def label(self, **_):
-        pass
+    def label(self, text="", **_):
+        self.labels.append(text)
 
     def separator(self, **_):
         pass
@@ -106,6 +106,8 @@ def test_every_panel_draws_settings_and_operators_that_exist(addon, blend, solve
     assert {"radtr.solve", "radtr.flashlight", "radtr.scenario_add", "radtr.clear"} <= set(drawn.operators)
     assert ("quality" in drawn.props) == (solver == "hierarchical") == ("method" not in drawn.props)
     assert ("user_solver" in drawn.props) == (solver == "user")
+    # Vertex Gather's auto (-1) says what it is for this solver
+    assert ("Auto: 256 rays a vertex" if solver == "hierarchical" else "Auto: patch means") in drawn.labels
 
 
 def test_opening_another_file_forgets_the_last_solve(addon, cornell):

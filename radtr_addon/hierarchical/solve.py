@@ -50,6 +50,13 @@ CORNER_RAYS = 16
 #: Rays of the final gather cast per batch (``_gather_steps``): bounds its memory to a few
 #: hundred MB whatever the rays per vertex (4,096 vertices a batch at 256 rays).
 GATHER_BATCH_RAYS = 1 << 20
+#: Leaves whose reflected radiosity is over this many times the area mean are hot (the ceiling
+#: over a lamp hung just under it: 4,600 leaves, 0.75 m^2, 60% of a furnished room's reflected
+#: power): the final gather samples them as lights too (``_hot_light``), as well as by its
+#: cosine rays, which find them seldom and then as specks (two thirds of that room's gather noise).
+HOT_FACTOR = 10.0
+#: Shadow rays to hot leaves per result vertex, for each gather ray so many.
+HOT_SHARE = 1 / 8
 #: Least reflectance a link's error is weighed by: an error of the light a receiver takes
 #: changes its B by rho times it, and the power books (absorbed) by the rest, so a black
 #: receiver's links are held to the bound too (an up-facing lamp 30 cm under a ceiling: 15%
@@ -302,6 +309,18 @@ def conforming(tris: np.ndarray, midpoint: dict) -> tuple[np.ndarray, np.ndarray
         rows += [row] * (len(out) - len(rows))
     out = np.array(out, np.int64).reshape(-1, 3)
     return out, np.array(rows, np.int64), out < 0
+
+
+def mis_share(cos_p: np.ndarray, cos_x: np.ndarray, density: np.ndarray, r: np.ndarray, rays: int,
+              samples: int) -> np.ndarray:
+    """Balance-heuristic share of a final-gather sample that reaches a hot leaf's point x, r
+    from the vertex, at cosines ``cos_p`` (vertex) and ``cos_x`` (leaf): ``rays`` cosine rays
+    (pdf cos_p / pi per steradian) and ``samples`` shadow rays by power (``density`` per unit
+    area, so density r^2 / cos_x per steradian) can both draw it. A cosine ray takes ``rays``
+    x share of the leaf's B, a shadow ray share x B (summed, not averaged): the shadow rays
+    carry a small hot leaf far off, the cosine rays the back of a lamp a centimetre away."""
+    g = cos_p * cos_x
+    return g / np.maximum(rays * g + np.pi * samples * density * r ** 2, 1e-300)
 
 
 class HierarchicalRadiosity:
@@ -857,12 +876,13 @@ class HierarchicalRadiosity:
         (``_result_mesh``), in batches of ``GATHER_BATCH_RAYS``: yields the fraction done,
         returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex (rounded to a
         square grid, ``grid_side``; ``_corner_points``), each taking the radiosity less
-        emission of the leaf whose front it hits (the hidden backs of two-sided lamps too). A
-        link hands its receiver the light of a partly seen source at the source's mean
-        radiosity; many such links, each within epsilon, brought the furniture of a room the
-        hot ceiling over its lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of
-        each object's light). Emitters and the outside lights are added at the corners
-        exactly (``_emitters_at``, ``nodes.external``)."""
+        emission of the leaf whose front it hits (the hidden backs of two-sided lamps too);
+        the hot leaves' light by shadow rays to them as well (``_hot_light``, ``mis_share``). A link
+        hands its receiver the light of a partly seen source at the source's mean radiosity;
+        many such links, each within epsilon, brought the furniture of a room the hot ceiling
+        over its lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of each object's
+        light). Emitters and the outside lights are added at the corners exactly
+        (``_emitters_at``, ``nodes.external``)."""
         from ..formfactors.raycast import EmbreeRays
         from ..sampling import cosine_directions, grid_side, stratified
 
@@ -872,9 +892,13 @@ class HierarchicalRadiosity:
         caster = EmbreeRays(PatchScene(nd.all_vertices(), nd.vids[leaves], nd.rho[leaves], nd.E[leaves],
                                        sc.object_index[nd.root[leaves]], sc.material_index[nd.root[leaves]]), 1)
         reflected = self.B - sc.emission[nd.root[leaves]]
+        glow = reflected.mean(axis=1)
+        hot = glow > HOT_FACTOR * np.average(glow, weights=nd.area[leaves])
+        density = np.where(hot, glow, 0.0) / max(float((glow * nd.area[leaves])[hot].sum()), 1e-300)
         twin = twins(sc.vertices, sc.triangles, sc.normals)
         p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
         m = grid_side(rays)
+        shadow = max(1, int(m * m * HOT_SHARE)) if hot.any() else 0
         batch = max(1, GATHER_BATCH_RAYS // (m * m))
         H = np.zeros((len(p), 3))
         for start in range(0, len(p), batch):
@@ -895,9 +919,42 @@ class HierarchicalRadiosity:
                 leaf_hit, _ = self.leaf_at(other, barycentric(x, sc.vertices[sc.triangles[other]]))
                 row[behind] = np.searchsorted(leaves, leaf_hit)
             got = np.where(row[:, None] >= 0, reflected[np.maximum(row, 0)], 0.0)
+            if shadow:                                       # a hot leaf hit: its share by MIS
+                h = np.flatnonzero((row >= 0) & hot[np.maximum(row, 0)])
+                cos_p = np.einsum("kc,kc->k", dirs[h], np.repeat(n[i], m * m, axis=0)[h])
+                cos_x = np.abs(np.einsum("kc,kc->k", dirs[h], nd.normal[leaves[row[h]]]))
+                got[h] *= m * m * mis_share(cos_p, cos_x, density[row[h]], dist[h], m * m, shadow)[:, None]
             H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
+            if shadow:
+                H[i] += self._hot_light(caster, np.flatnonzero(hot), reflected, density, p[i], n[i], m * m,
+                                        shadow, rng)
             yield (i[-1] + 1) / len(p)
         return H[back].reshape(len(leaf), 3, 3)
+
+    def _hot_light(self, caster, hot: np.ndarray, reflected: np.ndarray, density: np.ndarray, p: np.ndarray,
+                   n: np.ndarray, rays: int, samples: int, rng) -> np.ndarray:
+        """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (rows ``hot``
+        of ``leaf_ids``) sending ``reflected``, by ``samples`` shadow rays per point to points
+        on them drawn by power (leaf by its B x area, stratified, then uniform on it:
+        ``density`` per unit area), weighed against the ``rays`` cosine rays that may hit
+        them too (``mis_share``)."""
+        from ..sampling import strata, triangle_points
+
+        nd = self.nodes
+        ids = self.leaf_ids[hot]
+        cdf = np.cumsum(density[hot] * nd.area[ids])
+        k = np.minimum(np.searchsorted(cdf / cdf[-1], strata(samples, rng.random((len(p), samples)))), len(ids) - 1)
+        x = triangle_points(nd.tri[ids[k]], rng.random(k.shape), rng.random(k.shape))        # (points, samples, 3)
+        w = x - p[:, None]
+        r = np.linalg.norm(w, axis=2)
+        w /= np.maximum(r, 1e-300)[..., None]
+        cos_p = np.maximum(np.einsum("pc,psc->ps", n, w), 0.0)
+        cos_x = np.maximum(-np.einsum("psc,psc->ps", nd.normal[ids[k]], w), 0.0)
+        weight = mis_share(cos_p, cos_x, density[hot][k], r, rays, samples)
+        seen = np.flatnonzero(weight.ravel() > 0)
+        dist, _ = caster.first_hit(np.repeat(p, samples, axis=0)[seen], w.reshape(-1, 3)[seen])
+        weight.ravel()[seen] *= dist >= r.ravel()[seen] * (1 - 1e-6) - 10 * caster.epsilon
+        return np.einsum("ps,psc->pc", weight, reflected[hot][k])
 
     def _result_mesh(self):
         """The shown leaves cut at their T-vertices (``conforming``; a leaf with a T-vertex on
