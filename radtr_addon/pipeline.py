@@ -260,8 +260,8 @@ class Solve:
         s = self.solver
         if s.done:
             return 1.0
-        if getattr(s, "gathering", False):
-            return s.gathered
+        if getattr(s, "finishing", False):
+            return s.finished
         r = max(s.residual, 1e-300)
         by_res = np.log(r) / np.log(max(self.settings.tolerance, 1e-300)) if r < 1 else 0.0
         return float(np.clip(max(by_res, s.iterations / s.max_iterations), 0.0, 1.0))
@@ -270,7 +270,7 @@ class Solve:
     def readout(self) -> str:
         """One line on where the solve stands, for the status bar, the N-panel and the CLI."""
         s = self.solver
-        if getattr(s, "refining", False) or getattr(s, "gathering", False):     # no residual to speak of
+        if getattr(s, "refining", False) or getattr(s, "finishing", False):     # no residual to speak of
             return f"{s.phase}, {s.seconds:.1f} s"
         eta = self.eta
         left = f", about {eta:,.0f} s left" if eta is not None else ""

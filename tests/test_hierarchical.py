@@ -546,12 +546,12 @@ def test_a_final_gather_agrees_with_the_leaves_and_takes_a_lamps_hidden_back(mon
                                HierarchicalSettings(epsilon=0.1, gather_rays=256))
     fractions = []
     while not hr.step():
-        if hr.gathering:
-            fractions.append(hr.gathered)
+        if hr.finishing:
+            fractions.append(hr.finished)
             assert "final gather" in hr.phase
     assert len(fractions) > 3 and np.all(np.diff(fractions) > 0) and fractions[-1] == 1.0
     links, gathered = hr.result(gather=0), hr.result()
-    assert gathered.result.seconds["vertex_gather"] > 0
+    assert gathered.result.seconds["vertices"] > 0
     leaves = links.leaves
     over_lamp = (leaves.object_index == 0) & (np.abs(leaves.centroids[:, :2] - 2.0) < 0.25).all(axis=1)
     for m in [leaves.object_index == k for k in range(4)] + [over_lamp]:
@@ -565,7 +565,7 @@ def test_a_final_gather_agrees_with_the_leaves_and_takes_a_lamps_hidden_back(mon
     shown = leaves.emission.max(axis=1) == 0
 
     def corners(rays):
-        hr._memo.pop(("gather", rays), None)                # made again with the HOT_FACTOR of now
+        hr._memo.pop(("corners", rays), None)               # made again with the HOT_FACTOR of now
         return hr.result(gather=rays).corner_B.mean(axis=2)[shown]
 
     hot_64 = corners(64)

@@ -373,8 +373,8 @@ class HierarchicalRadiosity:
         self.done = False
         self._round = None                # the refine in progress (``_round_steps``)
         self._progress = ""               # what it is doing, for ``phase``
-        self._final = None                # the final gather in progress (``_gather_steps``)
-        self.gathered = 0.0               # its fraction done
+        self._final = None                # the light at the result vertices in progress (``_corner_steps``)
+        self.finished = 0.0               # its fraction done
         self._memo: dict = {}             # the result mesh and the gather, by the solve they are of
         self._t_start = time.perf_counter()
         self.tol, self.max_iterations = s.tolerance, s.max_rounds
@@ -394,16 +394,18 @@ class HierarchicalRadiosity:
         return self._round is not None
 
     @property
-    def gathering(self) -> bool:
-        """True while the final gather at the result vertices is under way (``step``)."""
+    def finishing(self) -> bool:
+        """True while the light at the result vertices is under way (``step``'s last phase)."""
         return self._final is not None
 
     @property
     def phase(self) -> str:
         if self.refining:
             return f"hierarchical round {len(self.rounds) + 1}, {self._progress}"
-        if self.gathering:
-            return f"final gather at the vertices, {self.settings.gather_rays:,} rays each: {self.gathered:.0%}"
+        if self.finishing:
+            rays = self.settings.gather_rays
+            how = f" (final gather, {rays:,} rays each)" if rays else ""
+            return f"light at the result vertices{how}: {self.finished:.0%}"
         if self.done:
             return f"hierarchical, {len(self.rounds)} rounds, {len(self.links):,} links"
         return f"hierarchical round {len(self.rounds)} solved, {len(self.links):,} links"
@@ -761,20 +763,20 @@ class HierarchicalRadiosity:
     def step(self, count: int = 1, cancel=None) -> bool:
         """One slice of a refine-solve round (whatever ``count``): a slice of the refine
         (``_round_steps``), or, once it is done, the solve; once no link needs refining (or
-        the rounds ran out), a batch of the final gather if ``gather_rays``. True when done."""
+        the rounds ran out), a slice of the light at the result vertices (``_corner_steps``:
+        the final gather if ``gather_rays``). True when done."""
         t0 = time.perf_counter()
         if self._final is not None:
             try:
-                self.gathered = next(self._final)
+                self.finished = next(self._final)
                 return False
             except StopIteration as stop:
-                self._memo["gather", self.settings.gather_rays] = stop.value
+                self._memo["corners", self.settings.gather_rays] = stop.value
                 self._final = None
                 self.done = True
                 return True
             finally:
-                self.stage_seconds["vertex_gather"] = self.stage_seconds.get("vertex_gather", 0.0) + (
-                    time.perf_counter() - t0)
+                self.stage_seconds["vertices"] = self.stage_seconds.get("vertices", 0.0) + time.perf_counter() - t0
         if self._round is None:
             self._round = self._round_steps()
         try:
@@ -793,8 +795,8 @@ class HierarchicalRadiosity:
                             "leaves": int(len(self.leaf_ids)), "sweeps": self.sweeps,
                             "seconds": round(time.perf_counter() - self._t_start, 3)})
         self.done = refined == 0 or len(self.rounds) >= self.settings.max_rounds
-        if self.done and self.settings.gather_rays > 0:
-            self._final, self.gathered, self.done = self._gather_steps(self.settings.gather_rays), 0.0, False
+        if self.done:
+            self._final, self.finished, self.done = self._corner_steps(self.settings.gather_rays), 0.0, False
         return self.done
 
     def leaf_at(self, t: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -870,6 +872,47 @@ class HierarchicalRadiosity:
         p = P.reshape(-1, 3)[first]
         p = p + CORNER_INSET * (toward / count[:, None] - p) + self.caster.epsilon * n[first]
         return p, n[first], back
+
+    def _corner_steps(self, rays: int):
+        """The light (k x 3 corners, 3) at the corners of the result mesh (``_result_mesh``), in
+        slices that yield the fraction done: the leaves' reflected light by a final gather of
+        ``rays`` a vertex (``_gather_steps``), or with 0 each leaf's quadratic there (less the
+        emitters' share, which comes next); the emitters' light (``_emitters_at``, a batch of
+        corner points a slice); the outside lights' (Light objects, the World: ``nodes.external``
+        about a small triangle 1% of the way in from each corner, a batch of corners a slice)."""
+        from ..tasks import scaled
+
+        nd, sc = self.nodes, self.scene
+        at, leaf, _, tris, P, T = self._result_mesh()
+        emitters = np.flatnonzero(sc.emission.max(axis=1) > 0)
+        # shares of the time, by rays cast per corner point (the outside light's: a guess)
+        cost = np.array([rays or 1, CORNER_RAYS * len(emitters), 8 * (nd.external is not None)], float)
+        start = np.concatenate([[0.0], np.cumsum(cost / cost.sum())])
+        if rays:
+            H = yield from scaled(self._gather_steps(rays), start[0], start[1] - start[0])
+        else:
+            H6 = self.H6[at]
+            if len(emitters):
+                H6 = H6 - self._emission_gather()[at]
+            bary = barycentric(P.reshape(-1, 3), np.repeat(T, 3, axis=0))            # corners in their leaves
+            H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary).reshape(len(leaf), 3, 6), H6),
+                           0.0)                                                     # a quadratic may dip below 0
+            yield start[1]
+        if len(emitters):
+            H = H + (yield from scaled(self._emitters_at(tris, P, T, nd.normal[leaf], emitters),
+                                       start[1], start[2] - start[1])).reshape(H.shape)
+        if nd.external is not None:
+            normals = np.repeat(nd.normal[leaf], 3, axis=0)
+            out = np.zeros((len(normals), 3))
+            batch = max(1, GATHER_BATCH_RAYS // 64)
+            for first in range(0, len(out), batch):
+                c = slice(first, first + batch)
+                corner = P.reshape(-1, 3)[c]
+                small = corner[:, None] + 0.01 * (np.repeat(T, 3, axis=0)[c] - corner[:, None])
+                out[c] = nd.external(small, normals[c], np.full((1, 3), 1 / 3))[:, 0]
+                yield start[2] + (start[3] - start[2]) * min(first + batch, len(out)) / len(out)
+            H = H + out.reshape(H.shape)
+        return H
 
     def _gather_steps(self, rays: int):
         """A final gather of the leaves' reflected light at the corners of the result mesh
@@ -980,20 +1023,27 @@ class HierarchicalRadiosity:
         return self._memo["mesh"]
 
     def _emitters_at(self, tris: np.ndarray, P: np.ndarray, T: np.ndarray, normals: np.ndarray,
-                     emitters: np.ndarray) -> np.ndarray:
+                     emitters: np.ndarray):
         """The emitting triangles' light (k x 3, 3) at the corners of the result triangles
         ``tris`` (k, 3 vertex ids; P their points) of leaves with corners ``T`` facing
         ``normals``: the closed form times shadow rays (``lights.irradiance_at``) at each
         vertex, once per side of a crease, ``CORNER_INSET`` of the way to its leaves'
         centroids (a vertex on a contact line takes the light of its own side). Direct light
         changes fastest where a lamp is near (a wall under it, the ceiling over its back); a
-        leaf's quadratic through six nodes has it only to epsilon there."""
+        leaf's quadratic through six nodes has it only to epsilon there. Yields the fraction
+        done, a batch of points at a time."""
         from ..lights import Light, irradiance_at
 
         sc = self.scene
         lights = [Light.polygon_light(f"triangle {t}", sc.vertices[sc.triangles[t]], sc.emission[t]) for t in emitters]
         p, n, back = self._corner_points(tris, P, T, normals)
-        return irradiance_at(p, n, lights, self.caster, samples=CORNER_RAYS, cull=0.0)[0][back]
+        H = np.zeros((len(p), 3))
+        batch = max(1, GATHER_BATCH_RAYS // (CORNER_RAYS * len(lights)))
+        for first in range(0, len(p), batch):
+            c = slice(first, first + batch)
+            H[c] = irradiance_at(p[c], n[c], lights, self.caster, samples=CORNER_RAYS, cull=0.0)[0]
+            yield min(first + batch, len(p)) / len(p)
+        return H[back]
 
     def resume(self, more_rounds: int):
         """Allow ``more_rounds`` refine-solve rounds after the cap."""
@@ -1012,8 +1062,9 @@ class HierarchicalRadiosity:
         each triangle's corners get the leaf's quadratic there and the outside lights (Light
         objects, the World) at the corner itself, not their mean over the leaf, so a sun
         patch's edge is as sharp at the vertices as the leaves allow. With ``gather`` rays
-        (None: the settings' ``gather_rays``, made while stepping), the leaves' reflected light
-        reaches each corner by a final gather (``_gather_steps``) instead of the quadratic."""
+        (None: the settings' ``gather_rays``), the leaves' reflected light reaches each corner
+        by a final gather (``_gather_steps``) instead of the quadratic. The corners' light is
+        made by ``step``'s last phase (``_corner_steps``), or here when not yet made."""
         from ..tasks import run
 
         nd, sc = self.nodes, self.scene
@@ -1039,30 +1090,13 @@ class HierarchicalRadiosity:
                           dict(self.stage_seconds),
                           "hierarchical", emitted, absorbed, leaving - received, np.zeros(3), unshot)
         if corners:
-            emitters = np.flatnonzero(sc.emission.max(axis=1) > 0)
-            if gather:
-                if ("gather", gather) not in self._memo:
-                    t0 = time.perf_counter()
-                    self._memo["gather", gather] = run(self._gather_steps(gather))
-                    res.seconds["vertex_gather"] = time.perf_counter() - t0
-                H = self._memo["gather", gather]
-            else:
-                H6 = self.H6[at]
-                if len(emitters):
-                    H6 = H6 - self._emission_gather()[at]
-                bary = barycentric(P.reshape(-1, 3), np.repeat(T, 3, axis=0))        # corners in their leaves
-                H = np.maximum(np.einsum("kpi,kic->kpc", quadratic.basis(bary).reshape(len(leaf), 3, 6),
-                                         H6), 0.0)                        # a quadratic may dip below 0
-            if len(emitters):
-                H = H + self._emitters_at(tris, P, T, nd.normal[leaf], emitters).reshape(H.shape)
-            if nd.external is not None:
-                # the outside light at each corner: about a small triangle 1% of the way in
-                small = (P[:, :, None] + 0.01 * (T[:, None] - P[:, :, None])).reshape(-1, 3, 3)
-                H = H + nd.external(small, np.repeat(nd.normal[leaf], 3, axis=0),
-                                    np.full((1, 3), 1 / 3)).reshape(H.shape)
-                corner_B = sc.emission[nd.root[leaf]][:, None] + nd.rho[leaf][:, None] * H
-            else:
-                corner_B = nd.E[leaf][:, None] + nd.rho[leaf][:, None] * H
+            if ("corners", gather) not in self._memo:
+                t0 = time.perf_counter()
+                self._memo["corners", gather] = run(self._corner_steps(gather))
+                res.seconds["vertices"] = time.perf_counter() - t0
+            H = self._memo["corners", gather]
+            E = sc.emission[nd.root[leaf]] if nd.external is not None else nd.E[leaf]
+            corner_B = E[:, None] + nd.rho[leaf][:, None] * H
         else:
             corner_B = nd.E[leaf][:, None] + nd.rho[leaf][:, None] * np.einsum(
                 "ki,lic->lkc", quadratic.AT_CORNERS, self.H6[at])
