@@ -64,7 +64,8 @@ def near(h: np.ndarray, radius: np.ndarray) -> np.ndarray:
 class Proximity:
     """Per input triangle, h at its grid cells; ``mixed(ids)`` for nodes (see module). A
     cluster is mixed when any of its triangles has a cell near a surface: it hands light to
-    its triangles by their cosines alone, so the part of a wall behind a panel would get it."""
+    its triangles by their cosines alone, so the part of a wall behind a panel would get it.
+    ``twin``: each input triangle's coincident back-to-back twin (-1 for none)."""
 
     def __init__(self, nodes, caster, max_level: int):
         s = nodes.scene
@@ -74,7 +75,7 @@ class Proximity:
         self.offset = np.concatenate([[0], np.cumsum(4 ** self.g)])
         self.h = np.empty(self.offset[-1])
         tri = s.vertices[s.triangles]
-        twin = twins(s.vertices, s.triangles, s.normals)
+        self.twin = twin = twins(s.vertices, s.triangles, s.normals)     # the final gather reads it too
         for g in np.unique(self.g):
             ts = np.flatnonzero(self.g == g)
             pts = np.einsum("pk,tkc->tpc", cell_centroids(int(g)), tri[ts])

@@ -27,7 +27,6 @@ import numpy as np
 from .. import compiled
 from ..errors import Cancelled, SceneError
 from ..formfactors.closed_form import polygon_factor
-from ..formfactors.coincident import twins
 from ..scene import PatchScene
 from ..solvers.result import SolveResult
 from ..textures import barycentric
@@ -938,7 +937,7 @@ class HierarchicalRadiosity:
         glow = reflected.mean(axis=1)
         hot = glow > HOT_FACTOR * np.average(glow, weights=nd.area[leaves])
         density = np.where(hot, glow, 0.0) / max(float((glow * nd.area[leaves])[hot].sum()), 1e-300)
-        twin = twins(sc.vertices, sc.triangles, sc.normals)
+        twin = self.contacts.twin
         p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
         m = grid_side(rays)
         shadow = max(1, int(m * m * HOT_SHARE)) if hot.any() else 0
