@@ -24,6 +24,7 @@ from .formfactors.methods import FormFactors
 from .hierarchy import subdivide
 from .lights import Light, direct_irradiance, sky_irradiance
 from .reconstruct import VertexRadiosity
+from .sampling import grid_side
 from .scene import PatchScene, check_writable
 from .settings import Settings, auto_max_area
 from .solvers import make_solver, patch_bytes
@@ -67,6 +68,10 @@ class Solve:
         for w in scene_input.warnings:
             log(f"RadTR warning: {w}")
         self.stats.warnings += scene_input.warnings
+        rays, side = settings.vertex_gather, grid_side(settings.vertex_gather)
+        if rays and side * side != rays:
+            self._warn([f"Vertex Gather casts a square grid of stratified rays: {rays:,} a vertex are cast as "
+                        f"{side * side:,} ({side} x {side})"])
         self.sky = None                             # the research sky's SkyFactors, once computed
         self._trace: list[tuple[float, float]] = []  # (solver seconds, residual) after each advance
         if settings.solver == "hierarchical":

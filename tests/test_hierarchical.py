@@ -634,8 +634,9 @@ def test_a_refine_in_slices_gives_the_same_links_and_light(monkeypatch):
 
 
 def test_a_hierarchical_solve_names_what_it_does_not_use_and_back_to_back_faces():
-    """Settings of uniform patches (Max Area, the form-factor method) are named as unused, and
-    a wall modelled as two coincident faces back to back gets the uniform solve's warning."""
+    """Settings of uniform patches (Max Area, the form-factor method) are named as unused, a
+    wall modelled as two coincident faces back to back gets the uniform solve's warning, and
+    Vertex Gather rays that are not a square say what is cast."""
     from radtr_addon.pipeline import SceneInput, solve
     from radtr_addon.settings import Settings
 
@@ -647,9 +648,11 @@ def test_a_hierarchical_solve_names_what_it_does_not_use_and_back_to_back_faces(
     quiet = solve(SceneInput(scene), Settings(solver="hierarchical", quality=0.3), log=lambda *_: None)
     assert not any("not used" in w for w in quiet.stats.warnings)
     assert any("coincident back-to-back faces" in w and "'part1'" in w for w in quiet.stats.warnings)
-    told = solve(SceneInput(scene), Settings(solver="hierarchical", quality=0.3, max_area=0.1, method="embree"),
-                 log=lambda *_: None)
+    told = solve(SceneInput(scene), Settings(solver="hierarchical", quality=0.3, max_area=0.1, method="embree",
+                                             gather_rays=200), log=lambda *_: None)
     assert any(w.endswith("max_area, method not used") for w in told.stats.warnings)
+    assert any(w.endswith("200 a vertex are cast as 196 (14 x 14)") for w in told.stats.warnings)
+    assert not any("square grid" in w for w in quiet.stats.warnings)          # auto: 256, a square
 
 
 def test_every_source_in_a_closed_room_has_its_light_delivered():

@@ -52,8 +52,8 @@ class SolveResult:
         if total <= 0:
             return "no light emitted"
         parts = {"absorbed": self.absorbed, "escaped": self.escaped, "blocked": self.blocked, "unshot": self.unshot}
-        shares = ", ".join(f"{name} {float(v.sum()) / total:.1%}" for name, v in parts.items()
-                           if name != "unshot" or v.sum() > 0)
+        shares = ", ".join(f"{name} {round(float(v.sum()) / total, 3) + 0.0:.1%}" for name, v in parts.items()
+                           if name != "unshot" or v.sum() > 0)             # + 0.0: no "-0.0%"
         watts = ", ".join(f"{float(w):.4g}" for w in self.emitted)
         return f"emitted {watts} W (R, G, B): {shares}"
 
