@@ -656,6 +656,33 @@ def test_a_hierarchical_solve_names_what_it_does_not_use_and_back_to_back_faces(
     assert not any("square grid" in w for w in quiet.stats.warnings)          # auto: 256, a square
 
 
+def test_the_light_at_the_vertices_is_the_last_phase_with_its_progress(monkeypatch):
+    """After the last round a solve makes the light at the result vertices in slices (the
+    gather's batches, then the emitters', here a lamp's): the readout says so with its share
+    done, rising to the end, so the progress bar moves and ESC can stop it between slices;
+    the result's vertices then come from what it made (no second gather)."""
+    from radtr_addon.hierarchical import solve as hierarchical
+    from radtr_addon.pipeline import SceneInput, Solve
+    from radtr_addon.settings import Settings
+
+    monkeypatch.setattr(hierarchical, "GATHER_BATCH_RAYS", 256 * 20)
+    room = [[a, a + u, a + u + v, a + v] for a, u, v in
+            (map(np.array, f) for f in closed_box((0, 0, 0), (2, 2, 2), inward=True))]
+    lamp = [(0.2, 0.2, 1.99), (0.2, 0.6, 1.99), (0.6, 0.6, 1.99), (0.6, 0.2, 1.99)]        # facing down
+    job = Solve(SceneInput(build([(room, 0.5, 0.0), ([lamp], 0.0, 5.0)])), Settings(solver="hierarchical", quality=0.3),
+                log=lambda *_: None)
+    seen = []
+    while not job.advance(0.001):
+        if job.solver.finishing:
+            seen.append((job.fraction, job.readout))
+    fractions = [f for f, _ in seen]
+    assert len(seen) > 5 and np.all(np.diff(fractions) > 0) and fractions[0] < 0.5 and fractions[-1] == pytest.approx(1)
+    assert all(r.startswith("light at the result vertices (final gather, 256 rays each): ") for _, r in seen)
+    made = job.solver.stage_seconds["vertices"]
+    job.finish()
+    assert job.stats.seconds["vertices"] == made and job.vertices is not None
+
+
 def test_every_source_in_a_closed_room_has_its_light_delivered():
     """``delivered``: in a closed room each source's leaving power reaches the receivers
     (within 1%: the books' escaped, source by source), the sources' shares add up to what the
