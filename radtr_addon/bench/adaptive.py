@@ -82,8 +82,7 @@ def worst_object(values, reference, which, weights) -> float:
 def configurations(quick: bool) -> list[tuple[str, dict]]:
     uniform = [(f"uniform {n:,}", {"solver": "jacobi", "method": "embree", "rays": 1024, "max_area": 0.0,
                                    "tolerance": 1e-4, "patches": n}) for n in UNIFORM_PATCHES[:1 if quick else 2]]
-    hier = [(f"hierarchical {q:g}",
-             {"solver": "hierarchical", "quality": q, "tolerance": 1e-4})
+    hier = [(f"hierarchical {q:g}", {"solver": "hierarchical", "quality": q, "tolerance": 1e-4})
             for q in (QUALITIES[:2] if quick else QUALITIES)]
     return uniform + hier
 

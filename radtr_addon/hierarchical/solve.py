@@ -964,7 +964,7 @@ class HierarchicalRadiosity:
             got = np.where(row[:, None] >= 0, reflected[np.maximum(row, 0)], 0.0)
             if shadow:                                       # a hot leaf hit: its share by MIS
                 h = np.flatnonzero((row >= 0) & hot[np.maximum(row, 0)])
-                cos_p = np.einsum("kc,kc->k", dirs[h], np.repeat(n[i], m * m, axis=0)[h])
+                cos_p = np.einsum("kc,kc->k", dirs[h], n[i][h // (m * m)])
                 cos_x = np.abs(np.einsum("kc,kc->k", dirs[h], nd.normal[leaves[row[h]]]))
                 got[h] *= m * m * mis_share(cos_p, cos_x, density[row[h]], dist[h], m * m, shadow)[:, None]
             H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
