@@ -2,7 +2,7 @@
 
 ``FormFactorSettings`` names the method and its knobs; ``FormFactors`` builds the method,
 falls back from a GPU method to Embree rays when no GPU context can be had (with a
-warning), warns about coincident back-to-back faces (``coincident``), and is the
+warning), warns about faces modelled twice, back to back (``coincident``), and is the
 ``RowCache`` of its rows within a byte budget.
 """
 from __future__ import annotations
