@@ -37,6 +37,8 @@ CELL_FRACTION = 1 / 200
 #: and than this share of the farthest any of the element's cells sees (in a room 2.4 m high
 #: a floor triangle 2.8 m across has the ceiling "near"; the floor under a box is nearer).
 NEAR_SHARE = 0.5
+#: Points per side of the grid on which ``open_points`` tests a leaf (16 points).
+OPEN_GRID = 4
 
 
 def cell_levels(radius: np.ndarray, diagonal: float) -> np.ndarray:
@@ -69,20 +71,18 @@ class Proximity:
 
     def __init__(self, nodes, caster, max_level: int):
         s = nodes.scene
-        self.nodes = nodes
+        self.nodes, self.caster = nodes, caster
         r0 = nodes.radius[nodes.element_root]
         self.g = np.minimum(cell_levels(r0, nodes.diagonal), max_level)
         self.offset = np.concatenate([[0], np.cumsum(4 ** self.g)])
         self.h = np.empty(self.offset[-1])
         tri = s.vertices[s.triangles]
-        self.twin = twin = twins(s.vertices, s.triangles, s.normals)     # the final gather reads it too
+        self.twin = twins(s.vertices, s.triangles, s.normals)     # the final gather reads it too
         for g in np.unique(self.g):
             ts = np.flatnonzero(self.g == g)
             pts = np.einsum("pk,tkc->tpc", cell_centroids(int(g)), tri[ts])
             n = np.repeat(s.normals[ts], 4 ** g, axis=0)
-            h, hit = caster.first_hit(pts.reshape(-1, 3) + caster.epsilon * n, n)
-            hit_ = np.maximum(hit, 0)
-            back = (hit >= 0) & (np.einsum("kc,kc->k", s.normals[hit_], n) > 0) & (twin[hit_] < 0)
+            h, back = self._normal_hits(pts.reshape(-1, 3), n)
             self.h[(self.offset[ts][:, None] + np.arange(4 ** g)).ravel()] = np.where(back, 0.0, h)
         self.gap = self.h == 0                              # per cell: covered (a surface's back on it)
         self.covered = np.add.reduceat(self.gap, self.offset[:-1]) > 0      # per input triangle
@@ -97,6 +97,29 @@ class Proximity:
                 node = np.unique(nodes.parent[node])
                 node = node[node >= 0]
         self._known = np.where(touched, 2, 0).astype(np.int8)     # per node: 0 unknown, 1 no, 2 mixed
+
+    def _normal_hits(self, points: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (k,) to the first surface along each normal ``n`` from ``points``, and
+        whether it shows its back there (one side of a two-sided face does not: see module)."""
+        caster, normals = self.caster, self.nodes.scene.normals
+        h, hit = caster.first_hit(points + caster.epsilon * n, n)
+        hit_ = np.maximum(hit, 0)
+        return h, (hit >= 0) & (np.einsum("kc,kc->k", normals[hit_], n) > 0) & (self.twin[hit_] < 0)
+
+    def open_points(self, leaves: np.ndarray, side: int = OPEN_GRID) -> tuple[np.ndarray, np.ndarray]:
+        """Points (m, side^2, 3) stratified on each leaf and whether each is open, not under a
+        surface's back (all are on input triangles with no covered cell)."""
+        from ..sampling import stratified, triangle_points
+
+        nd = self.nodes
+        u, v = stratified(side)
+        points = triangle_points(nd.tri[leaves][:, None], u, v)
+        is_open = np.ones(points.shape[:2], bool)
+        some = np.flatnonzero(self.covered[nd.root[leaves]])
+        if len(some):
+            n = np.repeat(nd.normal[leaves[some]], side * side, axis=0)
+            is_open[some] = ~self._normal_hits(points[some].reshape(-1, 3), n)[1].reshape(len(some), -1)
+        return points, is_open
 
     def gap_share(self, elements: np.ndarray) -> np.ndarray:
         """Share (m,) of each element's cells that are covered (an element finer than the
