@@ -22,7 +22,8 @@ edges (a ceiling 1 cm over a lamp, a wall behind a sofa) keep their mean: their 
 leaks out sideways; a link that sees such a mixed source only in part is refined at the
 source (``HierarchicalRadiosity._leaks``), so the hot ceiling over a lamp is not sent past
 the lamp's edge as part of its element's mean. ``gap_share`` gives each leaf's share of
-covered cells, ``in_gap`` which receivers lie on a source's covered part.
+covered cells, ``in_gap`` which receivers lie on a source's covered part, ``open_points``
+which points of a leaf are open (the final gather takes a floor's light there).
 """
 from __future__ import annotations
 
