@@ -8,8 +8,10 @@ every point, the form factors of a partition of the scene (1 in a closed one), w
 constant per link would leave each leaf the mean of a coarser receiver.
 
 Nodes sit ``INSET`` of the way towards the centroid (an edge on a contact line is a singular
-line of F). The error of the quadratic is measured at ``CHECK``: the centroid and the three
-points halfway from it to the corners, where a peak between the nodes shows.
+line of F). A link's quadratic is fitted (``fitted``) to F at the nodes, at ``CHECK`` (the
+centroid and the three points halfway from it to the corners, where a peak between the
+nodes shows) and at a degree-6 rule's points, with the rule's mean; its worst miss at them
+is its error.
 Barycentric order: corners a, b, c, then midpoints of bc, ca, ab.
 """
 from __future__ import annotations
@@ -53,3 +55,30 @@ _AB, _BC, _CA = (_A + _B) / 2, (_B + _C) / 2, (_C + _A) / 2
 _CHILDREN = [(_AB, _BC, _CA), (_A, _AB, _CA), (_AB, _B, _BC), (_CA, _BC, _C)]
 #: (4, 6, 6): a child's nodal values from its parent's, per child slot.
 PUSH = np.stack([basis(POINTS[:6] @ np.array(corners)) for corners in _CHILDREN])
+
+#: Values (22, 6) at ``POINTS`` then ``RULE_POINTS`` from the six nodal values.
+AT_FIT = basis(np.vstack([POINTS, RULE_POINTS]))
+
+
+def _mean_fit() -> tuple[np.ndarray, np.ndarray]:
+    """(6, P) least-squares fit of nodal values to values at ``POINTS`` and ``RULE_POINTS``, and
+    (6,) the correction that sets the fit's mean to a given one (Lagrange: c + g (mu - MEAN.c) /
+    (MEAN.g), g = (Phi^T Phi)^-1 MEAN)."""
+    inv = np.linalg.inv(AT_FIT.T @ AT_FIT)
+    g = inv @ MEAN
+    return inv @ AT_FIT.T, g / (MEAN @ g)
+
+
+FIT, FIT_MEAN = _mean_fit()
+
+
+def fitted(values: np.ndarray, mean: np.ndarray) -> np.ndarray:
+    """Nodal values (L, 6) of the quadratic nearest (least squares) to ``values`` (L, P) at
+    ``POINTS`` then ``RULE_POINTS``, with its mean over the triangle ``mean`` (L,); nodes
+    below 0 are set to 0 and the rest scaled to that mean (the fit dips below 0 where F
+    falls to 0 at a horizon, and a lone link would push negative light to the leaves there)."""
+    c = values @ FIT.T
+    c += (mean - c @ MEAN)[:, None] * FIT_MEAN
+    c = np.maximum(c, 0.0)
+    m = c @ MEAN
+    return c * np.where(m > 0, mean / np.where(m > 0, m, 1.0), 1.0)[:, None]
