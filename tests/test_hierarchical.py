@@ -484,10 +484,10 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
     areas = vertices.areas()
     spp = bake_samples(which, areas)
     reference = np.empty_like(values)
-    for s in np.unique(spp):
+    for s in map(int, np.unique(spp)):
         ks = np.flatnonzero(spp == s)
         part = SimpleNamespace(parts=[vertices.parts[k] for k in ks])
-        reference[np.isin(which, ks)] = cycles_bakes(job, part, (int(s),))[s][0]
+        reference[np.isin(which, ks)] = cycles_bakes(job, part, (s,))[s][0]
     assert rel_rms(values, reference) < 0.05
     assert worst_object(values, reference, which, areas) < 0.03
 
