@@ -6,7 +6,6 @@ white furnace B = E / (1 - rho), Howell's form factors, Lambert's point-to-polyg
 form (``formfactors.closed_form``), Embree form factors with the direct solver.
 """
 import re
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -474,33 +473,17 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
     vertices: the strips refined along contacts and corners hold many vertices, and Cycles
     bakes points on a concave corner line 10-30% bright, which put the east wall's plain
     vertex mean 5% over."""
-    from radtr_addon.bench.adaptive import ResultVertices, solve_scene, worst_object
-    from radtr_addon.bench.solvers import cycles_bakes, rel_rms
+    from radtr_addon.bench.adaptive import ResultVertices, reference_bake, solve_scene, worst_object
+    from radtr_addon.bench.solvers import rel_rms
 
     job, _ = solve_scene("furnished_room", "hierarchical 0.1",
                          {"solver": "hierarchical", "quality": 0.1, "gather_rays": 256})
     vertices = ResultVertices(job)
     values, which = vertices.radiance()
     areas = vertices.areas()
-    spp = bake_samples(which, areas)
-    reference = np.empty_like(values)
-    for s in map(int, np.unique(spp)):
-        ks = np.flatnonzero(spp == s)
-        part = SimpleNamespace(parts=[vertices.parts[k] for k in ks])
-        reference[np.isin(which, ks)] = cycles_bakes(job, part, (s,))[s][0]
+    reference = reference_bake(job, vertices, which, areas)
     assert rel_rms(values, reference) < 0.05
     assert worst_object(values, reference, which, areas) < 0.03
-
-
-def bake_samples(which, weights, noise=0.005):
-    """Cycles samples per object (a power of two, 32 to 1,024) that bring the noise of its
-    weighted mean near ``noise``: a vertex's bake strays about 1.15 / sqrt(samples) of its
-    value (a table of 77 vertices' worth of area moved +-1.5% between 64-sample bakes), so
-    the mean over n_eff = (sum w)^2 / sum w^2 vertices needs n_eff x samples >= (1.15 /
-    noise)^2, 53,000 at 0.5%."""
-    n_eff = np.array([weights[which == k].sum() ** 2 / (weights[which == k] ** 2).sum()
-                      for k in range(which.max() + 1)])
-    return np.clip(2 ** np.ceil(np.log2((1.15 / noise) ** 2 / n_eff)), 32, 1024).astype(int)
 
 
 def test_a_black_lamp_under_a_ceiling_keeps_the_books():

@@ -136,7 +136,8 @@ def cycles_bakes(job, vmap: VertexMap, samples) -> dict[int, tuple[np.ndarray, f
         res.data.materials[0] = src.obj.data.materials[0]
         res.select_set(src.name in [name for name, _ in vmap.parts])
         if res.select_get():
-            attr = res.data.color_attributes.new("bake", "FLOAT_COLOR", "POINT")
+            attr = (res.data.color_attributes.get("bake")      # a second "bake" would be "bake.001"
+                    or res.data.color_attributes.new("bake", "FLOAT_COLOR", "POINT"))
             res.data.color_attributes.active_color = attr
             targets.append(res)
     bpy.context.view_layer.objects.active = targets[0]
