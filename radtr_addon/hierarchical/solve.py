@@ -45,11 +45,13 @@ MAP_BATCH = 1_000_000
 #: Fraction of the way from a result vertex to its leaves' centroids where its light is taken.
 #: On a box's side at the floor the gather point sees the floor's leaves along the footprint
 #: (``_open_light``) over a span that grows with the inset: at 1% (0.1 mm up) a few leaves'
-#: noise came through as thin spikes up the side (a box by a wall, its bottom 2 cm: RMS 24%
-#: against Cycles; 16% at 3%, 10% at 10%). Concave room edges pay for it, their points moved
-#: into the brighter inside: the Cornell box's walls +0.8% -> +1.6% by area mean, the ceiling
-#: +5.1% -> +6.2% (+3% and +8% at 30%).
-CORNER_INSET = 0.1
+#: noise came through as thin spikes up the side. Concave room edges pay for a large one,
+#: their points moved into the brighter inside (Cycles bakes the edge itself): on the Cornell
+#: box at Quality 0.1 the ceiling's area mean was +5.2% at 10%, +2.7% at 3%, +1.8% at 1%; the
+#: furnished room's box sides within 2 cm of the floor 7-16% RMS at 10%, 7-17% at 3%.
+CORNER_INSET = 0.03
+#: Most a gather ray's light may stand over its leaf's mean by the leaf's quadratic (``_shape``).
+SHAPE_MAX = 4.0
 #: Cosine rays per leaf that ``_open_light`` casts on a floor a box rests on (4 a point).
 CONTACT_RAYS = 64
 #: Shadow rays per (result vertex, emitting triangle): a stratified grid on the emitter.
@@ -927,10 +929,12 @@ class HierarchicalRadiosity:
         (``_result_mesh``), in batches of ``GATHER_BATCH_RAYS``: yields the fraction done,
         returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex (rounded to a
         square grid, ``grid_side``; ``_corner_points``), each taking the radiosity less
-        emission of the leaf whose front it hits (the hidden backs of two-sided lamps too; a
-        leaf on a floor a box rests on, its open part's: ``_open_light``); the hot leaves' light by
-        shadow rays to them as well (``_hot_light``, ``mis_share``). A link
-        hands its receiver the light of a partly seen source at the source's mean radiosity;
+        emission of the leaf whose front it hits where it hits it (``_shape``: a point on a
+        ceiling by a wall sees the wall's dark top strip at close range, and with the wall
+        leaf's mean the Cornell box's ceiling came out +7.5%; the hidden backs of two-sided
+        lamps too; a leaf on a floor a box rests on, its open part's: ``_open_light``); the
+        hot leaves' light by shadow rays to them as well (``_hot_light``, ``mis_share``). A
+        link hands its receiver the light of a partly seen source at the source's mean radiosity;
         many such links, each within epsilon, brought the furniture of a room the hot ceiling
         over its lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of each object's
         light). Emitters and the outside lights are added at the corners exactly
@@ -949,6 +953,7 @@ class HierarchicalRadiosity:
         hot = glow > HOT_FACTOR * np.average(glow, weights=nd.area[leaves])
         density = np.where(hot, glow, 0.0) / max(float((glow * nd.area[leaves])[hot].sum()), 1e-300)
         twin = self.contacts.twin
+        flat = self.contacts.covered[nd.root[leaves]]
         p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
         m = grid_side(rays)
         shadow = max(1, int(m * m * HOT_SHARE)) if hot.any() else 0
@@ -967,11 +972,16 @@ class HierarchicalRadiosity:
             row[behind] = -1
             other = twin[nd.root[leaves[hit[behind]]]]      # the back of a two-sided face: its twin's leaf
             behind, other = behind[other >= 0], other[other >= 0]
+            x = origins + dist[:, None] * dirs
+            lam = np.zeros((len(row), 3))
+            front = np.flatnonzero(row >= 0)
+            lam[front] = barycentric(x[front], nd.tri[leaves[row[front]]])
             if len(behind):
-                x = origins[behind] + dist[behind, None] * dirs[behind]
-                leaf_hit, _ = self.leaf_at(other, barycentric(x, sc.vertices[sc.triangles[other]]))
+                leaf_hit, lam[behind] = self.leaf_at(other, barycentric(x[behind], sc.vertices[sc.triangles[other]]))
                 row[behind] = np.searchsorted(leaves, leaf_hit)
             got = np.where(row[:, None] >= 0, seen[np.maximum(row, 0)], 0.0)
+            h = np.flatnonzero(row >= 0)
+            got[h] *= self._shape(row[h], lam[h], flat)
             if shadow:                                       # a hot leaf hit: its share by MIS
                 h = np.flatnonzero((row >= 0) & hot[np.maximum(row, 0)])
                 cos_p = np.einsum("kc,kc->k", dirs[h], n[i][h // (m * m)])
@@ -979,10 +989,22 @@ class HierarchicalRadiosity:
                 got[h] *= m * m * mis_share(cos_p, cos_x, density[row[h]], dist[h], m * m, shadow)[:, None]
             H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
             if shadow:
-                H[i] += self._hot_light(caster, np.flatnonzero(hot), seen, density, p[i], n[i], m * m,
+                H[i] += self._hot_light(caster, np.flatnonzero(hot), seen, flat, density, p[i], n[i], m * m,
                                         shadow, rng)
             yield (i[-1] + 1) / len(p)
         return H[back].reshape(len(leaf), 3, 3)
+
+    def _shape(self, rows: np.ndarray, lam: np.ndarray, flat: np.ndarray) -> np.ndarray:
+        """(m, 3) how the reflected light of leaves ``rows`` (of ``leaf_ids``) at barycentric
+        ``lam`` in them stands to their mean: their irradiance quadratic there over its mean,
+        clamped to [0, ``SHAPE_MAX``]; 1 where ``flat`` (a floor a box rests on, whose
+        quadratic counts the dark footprint: its open light is made apart)."""
+        H6 = self.H6[rows]
+        at = np.einsum("mi,mic->mc", quadratic.basis(lam), H6)
+        mean = np.einsum("i,mic->mc", quadratic.MEAN, H6)
+        out = np.clip(at / np.maximum(mean, 1e-300), 0.0, SHAPE_MAX)
+        out[(mean <= 0) | flat[rows][:, None]] = 1.0
+        return out
 
     def _open_light(self, caster, reflected: np.ndarray) -> np.ndarray:
         """The reflected light (leaves, 3) a gather ray takes from each leaf it hits: ``reflected``
@@ -1052,10 +1074,11 @@ class HierarchicalRadiosity:
             found |= fill
         return values, found
 
-    def _hot_light(self, caster, hot: np.ndarray, reflected: np.ndarray, density: np.ndarray, p: np.ndarray,
-                   n: np.ndarray, rays: int, samples: int, rng) -> np.ndarray:
+    def _hot_light(self, caster, hot: np.ndarray, reflected: np.ndarray, flat: np.ndarray, density: np.ndarray,
+                   p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng) -> np.ndarray:
         """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (rows ``hot``
-        of ``leaf_ids``) sending ``reflected``, by ``samples`` shadow rays per point to points
+        of ``leaf_ids``) sending ``reflected`` (shaped as the cosine rays take it: ``_shape``
+        with ``flat``), by ``samples`` shadow rays per point to points
         on them drawn by power (leaf by its B x area, stratified, then uniform on it:
         ``density`` per unit area), weighed against the ``rays`` cosine rays that may hit
         them too (``mis_share``)."""
@@ -1075,7 +1098,9 @@ class HierarchicalRadiosity:
         seen = np.flatnonzero(weight.ravel() > 0)
         dist, _ = caster.first_hit(np.repeat(p, samples, axis=0)[seen], w.reshape(-1, 3)[seen])
         weight.ravel()[seen] *= dist >= r.ravel()[seen] * (1 - 1e-6) - 10 * caster.epsilon
-        return np.einsum("ps,psc->pc", weight, reflected[hot][k])
+        lam = barycentric(x.reshape(-1, 3), nd.tri[ids[k]].reshape(-1, 3, 3))
+        light = reflected[hot][k] * self._shape(hot[k].ravel(), lam, flat).reshape(*k.shape, 3)
+        return np.einsum("ps,psc->pc", weight, light)
 
     def _result_mesh(self):
         """The shown leaves cut at their T-vertices (``conforming``; a leaf with a T-vertex on
