@@ -210,7 +210,7 @@ class Solve:
             if sky is not None:                                           # a tiny triangle about each point
                 small = on[:, :, None] + 1e-3 * (tris[:, None] - on[:, :, None])
                 part = PatchScene(small.reshape(-1, 3), np.arange(3 * len(n)).reshape(-1, 3), 0.0, 0.0, 0, 0)
-                H += sky_irradiance(part, sky, caster=caster).reshape(H.shape)
+                H += sky_irradiance(part, sky, caster=caster, shared=k).reshape(H.shape)
             return H
         return external
 
