@@ -136,6 +136,54 @@ def member_shares(lo, count, link, order, normals, areas, w, sending):
     return pos, tri, share
 
 
+@njit(parallel=True, cache=True)
+def _shadow_rays(x, n_r, tri, n_s, u, v, eps, origin, direction, length, weight):
+    K, m = u.shape
+    for k in prange(K):
+        for j in range(m):
+            r, s = np.sqrt(u[k, j]), v[k, j]
+            a, b, c = tri[k, 0], tri[k, 1], tri[k, 2]
+            t0 = a[0] + r * (b[0] - a[0] + s * (c[0] - b[0]))
+            t1 = a[1] + r * (b[1] - a[1] + s * (c[1] - b[1]))
+            t2 = a[2] + r * (b[2] - a[2] + s * (c[2] - b[2]))
+            d0, d1, d2 = t0 - x[k, 0], t1 - x[k, 1], t2 - x[k, 2]
+            dist = max(np.sqrt(d0 * d0 + d1 * d1 + d2 * d2), 1e-300)
+            d0, d1, d2 = d0 / dist, d1 / dist, d2 / dist
+            w = max(d0 * n_r[k, 0] + d1 * n_r[k, 1] + d2 * n_r[k, 2], 0.0) * \
+                max(-(d0 * n_s[k, 0] + d1 * n_s[k, 1] + d2 * n_s[k, 2]), 0.0)
+            weight[k, j] = w
+            if w <= 0:
+                continue
+            # the target lifted off its triangle towards x, as ``EmbreeRays.clear_between``
+            back = (x[k, 0] - t0) * n_s[k, 0] + (x[k, 1] - t1) * n_s[k, 1] + (x[k, 2] - t2) * n_s[k, 2]
+            side = eps if back >= 0 else -eps
+            e0 = t0 + side * n_s[k, 0] - x[k, 0]
+            e1 = t1 + side * n_s[k, 1] - x[k, 1]
+            e2 = t2 + side * n_s[k, 2] - x[k, 2]
+            gap = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            g = max(gap, 1e-300)
+            e0, e1, e2 = e0 / g, e1 / g, e2 / g
+            for c, e in enumerate((e0, e1, e2)):
+                origin[k, j, c] = x[k, c] + eps * e
+                direction[k, j, c] = e
+            length[k, j] = max(gap - 3 * eps, 0.0)
+
+
+def shadow_rays(x, n_r, tri, n_s, u, v, eps):
+    """``hierarchical.links.shadow_rays``: for each point x (K, 3) facing ``n_r`` and m
+    uniforms (u, v) (K, m), the point on triangle ``tri`` (K, 3, 3) that they place, the
+    point-to-point cosines' product (K, m) and, where it is positive, the shadow ray of
+    ``EmbreeRays.clear_between`` from x to it (origins, directions (K, m, 3), lengths (K, m))."""
+    if not len(x) == len(n_r) == len(tri) == len(n_s) == len(u) == len(v):
+        raise ValueError(f"{len(x)} points, {len(tri)} triangles and uniforms for {len(u)}")
+    u = _reals(u)
+    origin, direction = np.zeros(u.shape + (3,)), np.zeros(u.shape + (3,))
+    length, weight = np.zeros(u.shape), np.empty(u.shape)
+    _shadow_rays(_reals(x), _reals(n_r), _reals(tri), _reals(n_s), u, _reals(v), float(eps), origin, direction,
+                 length, weight)
+    return origin, direction, length, weight
+
+
 def _ints(a):
     """Contiguous int64, the one type the kernels are built for (no rebuild at a caller's int32)."""
     return np.ascontiguousarray(a, np.int64)
@@ -153,6 +201,9 @@ SMOKE = {
     "points_on": lambda: (np.array([0, 1]), np.array([True, False]), np.array([[0, 1], [0, 1]]), np.array([0.5]),
                           np.array([0]), np.zeros((2, 3, 3)), np.zeros((2, 3)), np.eye(3)[None], np.eye(3)[:1],
                           np.full((2, 1, 3), 0.5)),
+    "shadow_rays": lambda: (np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]),
+                            np.array([[[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]]]),
+                            np.array([[0.0, 0.0, -1.0]]), np.full((1, 1), 0.5), np.full((1, 1), 0.5), 1e-6),
     "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
                               np.ones(1), np.eye(3)[:1], True),
 }

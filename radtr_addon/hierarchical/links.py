@@ -249,14 +249,12 @@ class Evaluator:
             return V
         m = VISIBILITY_RAYS
         u = strata(m, self.rng.random((len(li), m)))                         # stratified in u
-        targets = triangle_points(tri_s[li][:, None], u, self.rng.random((len(li), m)))
-        d = targets - x[li, pi][:, None]
-        dist = np.linalg.norm(d, axis=-1)
-        d = d / np.maximum(dist, 1e-300)[..., None]
-        w = np.maximum(np.einsum("kmc,kc->km", d, n_r[li]), 0) * np.maximum(-np.einsum("kmc,kc->km", d, n_s[li]), 0)
+        v = self.rng.random((len(li), m))
+        kernel = compiled.kernel("shadow_rays") or shadow_rays
+        origin, direction, length, w = kernel(x[li, pi], n_r[li], tri_s[li], n_s[li], u, v, self.caster.epsilon)
         ki, mi = np.nonzero(w > 0)
         ok = np.zeros(w.shape)
-        ok[ki, mi] = self.caster.clear_between(x[li, pi][ki], targets[ki, mi], target_normals=n_s[li][ki])
+        ok[ki, mi] = self.caster.reaches(origin[ki, mi], direction[ki, mi], length[ki, mi])
         total = w.sum(axis=1)
         V[li, pi] = np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 1.0)
         return V
@@ -375,6 +373,29 @@ class Evaluator:
         ok[li, mi] = self.caster.clear_between(a[li, mi], b[li, mi], na[li, mi], nb[li, mi])
         total = w.sum(axis=1)
         return np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 0.0)
+
+
+def shadow_rays(x, n_r, tri, n_s, u, v, eps):
+    """For each point x (K, 3) facing ``n_r`` and m uniforms (u, v) (K, m): the point on
+    triangle ``tri`` (K, 3, 3) facing ``n_s`` that they place (``triangle_points``), the
+    product of the cosines at both ends (K, m; 0 where either faces away) and, where it is
+    positive, the shadow ray ``EmbreeRays.clear_between`` casts from x to it: origins,
+    directions (K, m, 3) and lengths (K, m), the target lifted ``eps`` off its triangle
+    towards x (numpy's form of the compiled ``shadow_rays``)."""
+    targets = triangle_points(tri[:, None], u, v)
+    d = targets - x[:, None]
+    dist = np.linalg.norm(d, axis=-1)
+    d = d / np.maximum(dist, 1e-300)[..., None]
+    w = np.maximum(np.einsum("kmc,kc->km", d, n_r), 0) * np.maximum(-np.einsum("kmc,kc->km", d, n_s), 0)
+    origin, direction, length = np.zeros(targets.shape), np.zeros(targets.shape), np.zeros(w.shape)
+    ki, mi = np.nonzero(w > 0)
+    t, n = targets[ki, mi], n_s[ki]
+    t += eps * np.where(np.einsum("kc,kc->k", x[ki] - t, n) >= 0, 1.0, -1.0)[:, None] * n
+    e = t - x[ki]
+    gap = np.linalg.norm(e, axis=1)
+    e /= np.maximum(gap, 1e-300)[:, None]
+    origin[ki, mi], direction[ki, mi], length[ki, mi] = x[ki] + eps * e, e, np.maximum(gap - 3 * eps, 0.0)
+    return origin, direction, length, w
 
 
 def ranges(first: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
