@@ -480,9 +480,11 @@ def test_furnished_room_against_cycles_at_its_own_vertices(blend):
     """The bundled furnished room at Quality 0.1 with a final gather of 256 rays per vertex
     (gaps, contacts, a lamp 1 cm under the ceiling, sun and sky through a window) against
     Cycles baked at the written vertices (emitters left out), as a user would compare:
-    per-vertex RMS error of the reflected radiance within 5% (3.5%, nearly all the noise of
-    the ceiling's 32-sample bake: 2.6% against 64); every object's area-weighted mean within
-    3% (within 1.3%). Each object is baked at the samples that bring its mean's noise to
+    per-vertex RMS error of the reflected radiance within 5% (1.8%; 3.5% with the 129,000
+    leaves the World's noise split before its rays were drawn alike at an element's points,
+    nearly all the noise of the ceiling's 32-sample bake over their 83,000 vertices); every
+    object's area-weighted mean within 3% (within 1.5%: north wall +1.5%, west +1.1%, floor
+    +0.9%, the rest within 0.9%). Each object is baked at the samples that bring its mean's noise to
     about 0.5% (``bake_samples``): at 32 samples the east wall, whose mean rests on 181
     vertices' worth of area, came out +2.6%, and +0.3% at 1,024. Against a 1,024-sample
     bake the table, sofa, low box and cabinet are within 1.1%; with each corner's light from
