@@ -184,11 +184,18 @@ class Solve:
         return scene, np.arange(scene.n) < base.n
 
     def _external_light(self, scene):
-        """``external(tris, normals, bary=PATCH_POINTS)``: irradiance (m, points, 3) of the
-        lights and the World at barycentric points of elements (the World by ``SKY_RAYS``
-        cosine rays a point), each moved ``INSET`` towards the element's centre (a corner on
-        the line where a wall meets the ceiling would see out past it), or None when there
-        are none."""
+        """``external(tris, normals, bary=PATCH_POINTS, spread=False)``: irradiance (m,
+        points, 3) of the lights and the World at barycentric points of elements (the World
+        by ``SKY_RAYS`` cosine rays a point, drawn afresh at each call), each moved ``INSET``
+        towards the element's centre (a corner on the line where a wall meets the ceiling
+        would see out past it), or None when there are none. With ``spread``, also the same
+        with the World's rays drawn alike at the points of each element (``sky_irradiance``'s
+        ``shared``), whose differences are the sky's, not the rays' noise: what decides a
+        split (``nodes.Nodes.init_light``). The light kept is drawn apart from it: an element
+        kept because its alike rays all missed a window would keep their zero (a closed room
+        lit through a window held 15-18% too little of its sky light)."""
+        import itertools
+
         from .formfactors.raycast import EmbreeRays
         from .lights import PATCH_POINTS, irradiance_at
         from .reconstruct import INSET
@@ -198,8 +205,9 @@ class Solve:
         if not lights and sky is None:
             return None
         caster = EmbreeRays(scene, SKY_RAYS)
+        calls = itertools.count(1)                   # each call its own rays, the same in every run
 
-        def external(tris, normals, bary=PATCH_POINTS):
+        def external(tris, normals, bary=PATCH_POINTS, spread=False):
             k = len(bary)
             n = np.repeat(normals, k, axis=0)
             on = np.einsum("pc,ncd->npd", bary, tris)                     # (m, k, 3)
@@ -207,11 +215,14 @@ class Solve:
             H = np.zeros((len(tris), k, 3))
             if lights:
                 H += irradiance_at(on.reshape(-1, 3) + caster.epsilon * n, n, lights, caster)[0].reshape(H.shape)
+            alike = H.copy()
             if sky is not None:                                           # a tiny triangle about each point
                 small = on[:, :, None] + 1e-3 * (tris[:, None] - on[:, :, None])
                 part = PatchScene(small.reshape(-1, 3), np.arange(3 * len(n)).reshape(-1, 3), 0.0, 0.0, 0, 0)
-                H += sky_irradiance(part, sky, caster=caster, shared=k).reshape(H.shape)
-            return H
+                H += sky_irradiance(part, sky, caster=caster, seed=next(calls)).reshape(H.shape)
+                if spread:
+                    alike += sky_irradiance(part, sky, caster=caster, seed=next(calls), shared=k).reshape(H.shape)
+            return (H, alike) if spread else H
         return external
 
     def _add_lights(self):

@@ -200,7 +200,9 @@ class Nodes:
     # -- elements ------------------------------------------------------------------------
     def init_light(self, ids: np.ndarray):
         """E, H_ext and H_spread of new elements ``ids``: emission plus the reflected external
-        light, its mean over points of each element, and its spread there (and at its corners). The points are the
+        light, its mean over points of each element, and its spread there (and at its
+        corners), the spread from samples drawn alike at those points and the mean from
+        samples drawn apart from them (``external``'s ``spread``). The points are the
         centroids of the element's cells ``LIGHT_CELLS`` levels down (fewer on small ones), so
         a shadow that misses four points of a large input triangle still splits it."""
         s = self.scene
@@ -216,9 +218,9 @@ class Nodes:
             cells = cell_centroids(g)
             # the corners too: the vertex colours take the light there, so a leaf lit at a
             # corner and dark at its cells is split, not drawn as a long bright wedge
-            H = self.external(self.tri[sel], self.normal[sel], np.vstack([cells, np.eye(3)]))
+            H, alike = self.external(self.tri[sel], self.normal[sel], np.vstack([cells, np.eye(3)]), spread=True)
             self.H_ext[sel] = H[:, :len(cells)].mean(axis=1)
-            self.H_spread[sel] = (self.rho[sel] * (H.max(axis=1) - H.min(axis=1))).max(axis=1)
+            self.H_spread[sel] = (self.rho[sel] * (alike.max(axis=1) - alike.min(axis=1))).max(axis=1)
         self.E[ids] += self.rho[ids] * self.H_ext[ids]
 
     def split(self, ids: np.ndarray) -> np.ndarray:

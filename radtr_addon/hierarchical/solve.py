@@ -336,8 +336,10 @@ def mis_share(cos_p: np.ndarray, cos_x: np.ndarray, density: np.ndarray, r: np.n
 class HierarchicalRadiosity:
     """Hierarchical radiosity over a PatchScene of input triangles.
 
-    ``external(tris (m, 3, 3), normals (m, 3)) -> H (m, points, 3)`` gives the irradiance of
-    lights outside the solve at a few points of each element; ``shown`` (n,) marks the input
+    ``external(tris (m, 3, 3), normals (m, 3), bary (points, 3), spread=False) -> H (m,
+    points, 3)`` gives the irradiance of lights outside the solve at barycentric points of
+    each element (with ``spread``, a pair: that and H with its samples drawn alike at an
+    element's points, whose spread decides a split; ``pipeline.Solve._external_light``); ``shown`` (n,) marks the input
     triangles whose leaves are output (emitter backs are solved, not shown).
     """
 
