@@ -11,6 +11,7 @@ Blender adapter (``blender.pipeline``) reads a scene into a ``SceneInput`` and w
 """
 from __future__ import annotations
 
+import itertools
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -194,8 +195,6 @@ class Solve:
         split (``nodes.Nodes.init_light``). The light kept is drawn apart from it: an element
         kept because its alike rays all missed a window would keep their zero (a closed room
         lit through a window held 15-18% too little of its sky light)."""
-        import itertools
-
         from .formfactors.raycast import EmbreeRays
         from .lights import PATCH_POINTS, irradiance_at
         from .reconstruct import INSET

@@ -339,8 +339,9 @@ class HierarchicalRadiosity:
     ``external(tris (m, 3, 3), normals (m, 3), bary (points, 3), spread=False) -> H (m,
     points, 3)`` gives the irradiance of lights outside the solve at barycentric points of
     each element (with ``spread``, a pair: that and H with its samples drawn alike at an
-    element's points, whose spread decides a split; ``pipeline.Solve._external_light``); ``shown`` (n,) marks the input
-    triangles whose leaves are output (emitter backs are solved, not shown).
+    element's points, whose spread decides a split; ``pipeline.Solve._external_light``);
+    ``shown`` (n,) marks the input triangles whose leaves are output (emitter backs are
+    solved, not shown).
     """
 
     def __init__(self, scene: PatchScene, settings: HierarchicalSettings | None = None, *, external=None,
