@@ -184,6 +184,37 @@ def shadow_rays(x, n_r, tri, n_s, u, v, eps):
     return origin, direction, length, weight
 
 
+@njit(parallel=True, cache=True)
+def _cosine_directions(u, v, normals, out):
+    K, m = u.shape
+    for k in prange(K):
+        n0, n1, n2 = normals[k, 0], normals[k, 1], normals[k, 2]
+        if abs(n0) < 0.9:                                # t = x cross n, else y cross n
+            t0, t1, t2 = 0.0, -n2, n1
+        else:
+            t0, t1, t2 = n2, 0.0, -n0
+        size = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        t0, t1, t2 = t0 / size, t1 / size, t2 / size
+        b0, b1, b2 = n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0
+        for j in range(m):
+            r, phi = np.sqrt(u[k, j]), 2 * np.pi * v[k, j]
+            x, y, z = r * np.cos(phi), r * np.sin(phi), np.sqrt(max(1 - u[k, j], 0.0))
+            out[k, j, 0] = x * t0 + y * b0 + z * n0
+            out[k, j, 1] = x * t1 + y * b1 + z * n1
+            out[k, j, 2] = x * t2 + y * b2 + z * n2
+
+
+def cosine_directions(u, v, normals):
+    """``sampling.cosine_directions`` for u, v (k, m): cosine-weighted unit directions
+    (k, m, 3) about ``normals`` (k, 3), in ``sampling.tangent_frames``' frames."""
+    if not (np.ndim(u) == 2 and np.shape(u) == np.shape(v) and len(normals) == len(u)):
+        raise ValueError(f"samples {np.shape(u)} and {np.shape(v)} for {len(normals)} normals")
+    u = _reals(u)
+    out = np.empty(u.shape + (3,))
+    _cosine_directions(u, _reals(v), _reals(normals), out)
+    return out
+
+
 def _ints(a):
     """Contiguous int64, the one type the kernels are built for (no rebuild at a caller's int32)."""
     return np.ascontiguousarray(a, np.int64)
@@ -204,6 +235,7 @@ SMOKE = {
     "shadow_rays": lambda: (np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]),
                             np.array([[[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]]]),
                             np.array([[0.0, 0.0, -1.0]]), np.full((1, 1), 0.5), np.full((1, 1), 0.5), 1e-6),
+    "cosine_directions": lambda: (np.full((1, 1), 0.5), np.full((1, 1), 0.5), np.array([[0.0, 0.0, 1.0]])),
     "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
                               np.ones(1), np.eye(3)[:1], True),
 }
