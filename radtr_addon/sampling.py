@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import compiled
 from .tolerances import BOUNDS_FLOOR, BOUNDS_MARGIN
 
 
@@ -59,8 +60,6 @@ def cosine_directions(u: np.ndarray, v: np.ndarray, normals: np.ndarray) -> np.n
     samples u, v (k, m): the disk point (sqrt u, 2 pi v) lifted onto the hemisphere, in
     ``tangent_frames``. Compiled where numba builds (the final gather's and the World's
     tens of millions of rays: numpy's temporaries took 4 of a furnished room's 45 s)."""
-    from . import compiled
-
     kernel = compiled.kernel("cosine_directions") if np.ndim(u) == 2 else None
     if kernel is not None:
         return kernel(u, v, normals)

@@ -103,3 +103,33 @@ def test_final_gather_takes_direct_light_from_the_closed_form():
     tris = s.vertices[s.triangles]
     np.testing.assert_allclose(point_to_triangles(points, normals, tris)[:, 2:].sum(axis=1), exact, rtol=1e-9)
     assert np.all(point_to_triangles(points, normals, tris)[:2, :2] == 0)   # coplanar with the floor
+
+
+@pytest.mark.parametrize("normals", ["none", "origins", "targets", "one target normal", "both"])
+def test_clear_between_compiled_equals_numpy_form_and_sees_a_slab(normals, monkeypatch):
+    """Shadow rays between points above and below a slab (the unit square z = 0.5 in a unit
+    box's middle), with each end's normal given or not: the compiled rays and numpy's form
+    agree ray for ray, and a ray is blocked exactly when its segment crosses the slab."""
+    from radtr_addon import compiled
+
+    if compiled.kernel("clear_rays") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    slab = PatchScene(np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5], [0, 1, 0.5]], float),
+                      [[0, 1, 2], [0, 2, 3]], 0.5, 0.0, 0, 0)
+    caster = EmbreeRays(slab, 1)
+    rng = np.random.default_rng(2)
+    a = np.c_[rng.uniform(-0.5, 1.5, (2000, 2)), rng.uniform(0.0, 0.45, 2000)]
+    b = np.c_[rng.uniform(-0.5, 1.5, (2000, 2)), rng.uniform(0.55, 1.0, 2000)]
+    up = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    n_a, n_b = {"none": (None, None), "origins": (up, None), "targets": (None, -up),
+                "one target normal": (None, np.array([0.0, 0.0, -1.0])), "both": (up, -up)}[normals]
+    got = caster.clear_between(a, b, n_a, n_b)
+    with monkeypatch.context() as m:
+        m.setattr(compiled, "kernel", lambda name: None)
+        assert np.array_equal(caster.clear_between(a, b, n_a, n_b), got)
+    s = (0.5 - a[:, 2]) / (b[:, 2] - a[:, 2])
+    x = a + s[:, None] * (b - a)
+    crosses = np.all((x[:, :2] > 0) & (x[:, :2] < 1), axis=1)
+    clear_of_edges = np.all(np.minimum(np.abs(x[:, :2]), np.abs(x[:, :2] - 1)) > 1e-3, axis=1)
+    assert np.array_equal(got[clear_of_edges], ~crosses[clear_of_edges])
+    assert 0.2 < crosses.mean() < 0.8

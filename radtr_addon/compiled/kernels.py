@@ -215,6 +215,41 @@ def cosine_directions(u, v, normals):
     return out
 
 
+@njit(parallel=True, cache=True)
+def _clear_rays(origins, targets, n_o, n_t, eps, origin, direction, length):
+    for k in prange(len(origins)):
+        o0, o1, o2 = origins[k, 0], origins[k, 1], origins[k, 2]
+        t0, t1, t2 = targets[k, 0], targets[k, 1], targets[k, 2]
+        if n_o.shape[0]:                                 # each end lifted towards the other
+            side = eps if (t0 - o0) * n_o[k, 0] + (t1 - o1) * n_o[k, 1] + (t2 - o2) * n_o[k, 2] >= 0 else -eps
+            o0, o1, o2 = o0 + side * n_o[k, 0], o1 + side * n_o[k, 1], o2 + side * n_o[k, 2]
+        if n_t.shape[0]:
+            side = eps if (o0 - t0) * n_t[k, 0] + (o1 - t1) * n_t[k, 1] + (o2 - t2) * n_t[k, 2] >= 0 else -eps
+            t0, t1, t2 = t0 + side * n_t[k, 0], t1 + side * n_t[k, 1], t2 + side * n_t[k, 2]
+        d0, d1, d2 = t0 - o0, t1 - o1, t2 - o2
+        dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        g = max(dist, 1e-300)
+        d0, d1, d2 = d0 / g, d1 / g, d2 / g
+        origin[k, 0], origin[k, 1], origin[k, 2] = o0 + eps * d0, o1 + eps * d1, o2 + eps * d2
+        direction[k, 0], direction[k, 1], direction[k, 2] = d0, d1, d2
+        length[k] = max(dist - 3 * eps, 0.0)
+
+
+def clear_rays(origins, targets, origin_normals, target_normals, eps):
+    """``formfactors.raycast.EmbreeRays.clear_between``'s rays between points (k, 3) on
+    surfaces facing ``origin_normals`` and ``target_normals`` (k, 3, or None: not lifted):
+    each end lifted ``eps`` towards the other, the ray leaving ``eps`` off its origin and
+    stopping ``2 eps`` before its target; origins, unit directions (k, 3) and lengths (k,)."""
+    origins, targets = _reals(origins), _reals(targets)
+    if origins.shape != targets.shape:
+        raise ValueError(f"{origins.shape} origins but {targets.shape} targets")
+    n_o, n_t = (np.zeros((0, 3)) if n is None else _reals(np.broadcast_to(n, origins.shape))
+                for n in (origin_normals, target_normals))
+    origin, direction, length = np.empty(origins.shape), np.empty(origins.shape), np.empty(len(origins))
+    _clear_rays(origins, targets, n_o, n_t, float(eps), origin, direction, length)
+    return origin, direction, length
+
+
 def _ints(a):
     """Contiguous int64, the one type the kernels are built for (no rebuild at a caller's int32)."""
     return np.ascontiguousarray(a, np.int64)
@@ -236,6 +271,7 @@ SMOKE = {
                             np.array([[[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]]]),
                             np.array([[0.0, 0.0, -1.0]]), np.full((1, 1), 0.5), np.full((1, 1), 0.5), 1e-6),
     "cosine_directions": lambda: (np.full((1, 1), 0.5), np.full((1, 1), 0.5), np.array([[0.0, 0.0, 1.0]])),
+    "clear_rays": lambda: (np.zeros((1, 3)), np.ones((1, 3)), np.array([[0.0, 0.0, 1.0]]), None, 1e-6),
     "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
                               np.ones(1), np.eye(3)[:1], True),
 }

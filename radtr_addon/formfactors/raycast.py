@@ -20,6 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .. import compiled
 from ..sampling import bounding_box, cosine_directions, grid_side, hit_histogram, jittered, triangle_points
 from ..tolerances import RAY_OFFSET
 from .closed_form import point_to_polygon
@@ -137,7 +138,11 @@ class EmbreeRays:
         surfaces: each end is lifted ``epsilon`` off its surface (along its normal, towards
         the other end, where given), the ray leaves ``epsilon`` off its origin and stops
         ``2 epsilon`` before its target, so neither end's own surface counts however near
-        the two are (a ceiling 1 mm over a lamp, reached at a grazing angle)."""
+        the two are (a ceiling 1 mm over a lamp, reached at a grazing angle). The rays are
+        made in one compiled pass where numba builds (numpy's form below)."""
+        kernel = compiled.kernel("clear_rays") if np.ndim(origins) == 2 else None
+        if kernel is not None:
+            return self.reaches(*kernel(origins, targets, origin_normals, target_normals, self.epsilon))
         origins, targets = np.array(origins, float), np.array(targets, float)     # lifted below: copies
         for end, other, n in ((origins, targets, origin_normals), (targets, origins, target_normals)):
             if n is not None:
