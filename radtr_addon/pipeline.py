@@ -214,7 +214,7 @@ class Solve:
             H = np.zeros((len(tris), k, 3))
             if lights:
                 H += irradiance_at(on.reshape(-1, 3) + caster.epsilon * n, n, lights, caster)[0].reshape(H.shape)
-            alike = H.copy()
+            alike = H.copy() if spread else None
             if sky is not None:                                           # a tiny triangle about each point
                 small = on[:, :, None] + 1e-3 * (tris[:, None] - on[:, :, None])
                 part = PatchScene(small.reshape(-1, 3), np.arange(3 * len(n)).reshape(-1, 3), 0.0, 0.0, 0, 0)

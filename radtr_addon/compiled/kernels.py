@@ -136,6 +136,21 @@ def member_shares(lo, count, link, order, normals, areas, w, sending):
     return pos, tri, share
 
 
+@njit(cache=True)
+def _ray_between(o0, o1, o2, t0, t1, t2, a0, a1, a2, b0, b1, b2, eps):
+    """``formfactors.raycast.clear_rays`` for one pair: origin o facing a, target t facing b
+    (a zero normal: not lifted); returns the ray's origin, unit direction and length."""
+    side = eps if (t0 - o0) * a0 + (t1 - o1) * a1 + (t2 - o2) * a2 >= 0 else -eps
+    o0, o1, o2 = o0 + side * a0, o1 + side * a1, o2 + side * a2
+    side = eps if (o0 - t0) * b0 + (o1 - t1) * b1 + (o2 - t2) * b2 >= 0 else -eps
+    t0, t1, t2 = t0 + side * b0, t1 + side * b1, t2 + side * b2
+    d0, d1, d2 = t0 - o0, t1 - o1, t2 - o2
+    dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    g = max(dist, 1e-300)
+    d0, d1, d2 = d0 / g, d1 / g, d2 / g
+    return o0 + eps * d0, o1 + eps * d1, o2 + eps * d2, d0, d1, d2, max(dist - 3 * eps, 0.0)
+
+
 @njit(parallel=True, cache=True)
 def _shadow_rays(x, n_r, tri, n_s, u, v, eps, origin, direction, length, weight):
     K, m = u.shape
@@ -152,21 +167,12 @@ def _shadow_rays(x, n_r, tri, n_s, u, v, eps, origin, direction, length, weight)
             w = max(d0 * n_r[k, 0] + d1 * n_r[k, 1] + d2 * n_r[k, 2], 0.0) * \
                 max(-(d0 * n_s[k, 0] + d1 * n_s[k, 1] + d2 * n_s[k, 2]), 0.0)
             weight[k, j] = w
-            if w <= 0:
-                continue
-            # the target lifted off its triangle towards x, as ``EmbreeRays.clear_between``
-            back = (x[k, 0] - t0) * n_s[k, 0] + (x[k, 1] - t1) * n_s[k, 1] + (x[k, 2] - t2) * n_s[k, 2]
-            side = eps if back >= 0 else -eps
-            e0 = t0 + side * n_s[k, 0] - x[k, 0]
-            e1 = t1 + side * n_s[k, 1] - x[k, 1]
-            e2 = t2 + side * n_s[k, 2] - x[k, 2]
-            gap = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-            g = max(gap, 1e-300)
-            e0, e1, e2 = e0 / g, e1 / g, e2 / g
-            for c, e in enumerate((e0, e1, e2)):
-                origin[k, j, c] = x[k, c] + eps * e
-                direction[k, j, c] = e
-            length[k, j] = max(gap - 3 * eps, 0.0)
+            if w > 0:
+                ray = _ray_between(x[k, 0], x[k, 1], x[k, 2], t0, t1, t2, 0.0, 0.0, 0.0,
+                                   n_s[k, 0], n_s[k, 1], n_s[k, 2], eps)
+                for c in range(3):
+                    origin[k, j, c], direction[k, j, c] = ray[c], ray[3 + c]
+                length[k, j] = ray[6]
 
 
 def shadow_rays(x, n_r, tri, n_s, u, v, eps):
@@ -216,37 +222,26 @@ def cosine_directions(u, v, normals):
 
 
 @njit(parallel=True, cache=True)
-def _clear_rays(origins, targets, n_o, n_t, eps, origin, direction, length):
-    for k in prange(len(origins)):
-        o0, o1, o2 = origins[k, 0], origins[k, 1], origins[k, 2]
-        t0, t1, t2 = targets[k, 0], targets[k, 1], targets[k, 2]
-        if n_o.shape[0]:                                 # each end lifted towards the other
-            side = eps if (t0 - o0) * n_o[k, 0] + (t1 - o1) * n_o[k, 1] + (t2 - o2) * n_o[k, 2] >= 0 else -eps
-            o0, o1, o2 = o0 + side * n_o[k, 0], o1 + side * n_o[k, 1], o2 + side * n_o[k, 2]
-        if n_t.shape[0]:
-            side = eps if (o0 - t0) * n_t[k, 0] + (o1 - t1) * n_t[k, 1] + (o2 - t2) * n_t[k, 2] >= 0 else -eps
-            t0, t1, t2 = t0 + side * n_t[k, 0], t1 + side * n_t[k, 1], t2 + side * n_t[k, 2]
-        d0, d1, d2 = t0 - o0, t1 - o1, t2 - o2
-        dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        g = max(dist, 1e-300)
-        d0, d1, d2 = d0 / g, d1 / g, d2 / g
-        origin[k, 0], origin[k, 1], origin[k, 2] = o0 + eps * d0, o1 + eps * d1, o2 + eps * d2
-        direction[k, 0], direction[k, 1], direction[k, 2] = d0, d1, d2
-        length[k] = max(dist - 3 * eps, 0.0)
+def _clear_rays(o, t, a, b, eps, origin, direction, length):
+    for k in prange(len(o)):
+        ray = _ray_between(o[k, 0], o[k, 1], o[k, 2], t[k, 0], t[k, 1], t[k, 2], a[k, 0], a[k, 1], a[k, 2],
+                           b[k, 0], b[k, 1], b[k, 2], eps)
+        for c in range(3):
+            origin[k, c], direction[k, c] = ray[c], ray[3 + c]
+        length[k] = ray[6]
 
 
 def clear_rays(origins, targets, origin_normals, target_normals, eps):
-    """``formfactors.raycast.EmbreeRays.clear_between``'s rays between points (k, 3) on
-    surfaces facing ``origin_normals`` and ``target_normals`` (k, 3, or None: not lifted):
-    each end lifted ``eps`` towards the other, the ray leaving ``eps`` off its origin and
-    stopping ``2 eps`` before its target; origins, unit directions (k, 3) and lengths (k,)."""
+    """``formfactors.raycast.clear_rays``: the rays of ``EmbreeRays.clear_between`` between
+    points (k, 3), each end lifted ``eps`` towards the other along its normal (k, 3 or
+    broadcast; None: not lifted); origins, unit directions (k, 3) and lengths (k,)."""
     origins, targets = _reals(origins), _reals(targets)
     if origins.shape != targets.shape:
         raise ValueError(f"{origins.shape} origins but {targets.shape} targets")
-    n_o, n_t = (np.zeros((0, 3)) if n is None else _reals(np.broadcast_to(n, origins.shape))
-                for n in (origin_normals, target_normals))
+    a, b = (np.zeros(origins.shape) if n is None else _reals(np.broadcast_to(n, origins.shape))
+            for n in (origin_normals, target_normals))
     origin, direction, length = np.empty(origins.shape), np.empty(origins.shape), np.empty(len(origins))
-    _clear_rays(origins, targets, n_o, n_t, float(eps), origin, direction, length)
+    _clear_rays(origins, targets, a, b, float(eps), origin, direction, length)
     return origin, direction, length
 
 

@@ -139,20 +139,9 @@ class EmbreeRays:
         the other end, where given), the ray leaves ``epsilon`` off its origin and stops
         ``2 epsilon`` before its target, so neither end's own surface counts however near
         the two are (a ceiling 1 mm over a lamp, reached at a grazing angle). The rays are
-        made in one compiled pass where numba builds (numpy's form below)."""
-        kernel = compiled.kernel("clear_rays") if np.ndim(origins) == 2 else None
-        if kernel is not None:
-            return self.reaches(*kernel(origins, targets, origin_normals, target_normals, self.epsilon))
-        origins, targets = np.array(origins, float), np.array(targets, float)     # lifted below: copies
-        for end, other, n in ((origins, targets, origin_normals), (targets, origins, target_normals)):
-            if n is not None:
-                n = np.broadcast_to(n, end.shape)
-                side = np.where(np.einsum("...c,...c->...", other - end, n) >= 0, 1.0, -1.0)
-                end += self.epsilon * side[..., None] * n
-        d = targets - origins
-        dist = np.linalg.norm(d, axis=-1)
-        u = d / np.maximum(dist, 1e-300)[..., None]
-        return self.reaches(origins + self.epsilon * u, u, np.maximum(dist - 3 * self.epsilon, 0.0))
+        made in one compiled pass where numba builds (``clear_rays``, numpy's form)."""
+        make = compiled.kernel("clear_rays") if np.ndim(origins) == 2 else None
+        return self.reaches(*(make or clear_rays)(origins, targets, origin_normals, target_normals, self.epsilon))
 
     def first_hit(self, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance (k,) along unit ``dirs`` from ``origins`` to the first surface (inf for
@@ -210,3 +199,21 @@ class EmbreeRays:
         if unoccluded == 0:
             return 0.0
         return unoccluded * self.visible_fraction(point, j, samples)
+
+
+def clear_rays(origins, targets, origin_normals, target_normals, eps):
+    """The rays of ``EmbreeRays.clear_between`` between points (k, 3) on surfaces facing
+    ``origin_normals`` and ``target_normals`` (k, 3 or broadcast; None: not lifted): each
+    end lifted ``eps`` towards the other, the ray leaving ``eps`` off its origin and stopping
+    ``2 eps`` before its target. Origins, unit directions (k, 3) and lengths (k,) (numpy's
+    form of the compiled ``clear_rays``)."""
+    origins, targets = np.array(origins, float), np.array(targets, float)     # lifted below: copies
+    for end, other, n in ((origins, targets, origin_normals), (targets, origins, target_normals)):
+        if n is not None:
+            n = np.broadcast_to(n, end.shape)
+            side = np.where(np.einsum("...c,...c->...", other - end, n) >= 0, 1.0, -1.0)
+            end += eps * side[..., None] * n
+    d = targets - origins
+    dist = np.linalg.norm(d, axis=-1)
+    u = d / np.maximum(dist, 1e-300)[..., None]
+    return origins + eps * u, u, np.maximum(dist - 3 * eps, 0.0)

@@ -45,6 +45,7 @@ import numpy as np
 
 from .. import compiled
 from ..formfactors.closed_form import polygon_factor
+from ..formfactors.raycast import clear_rays
 from ..sampling import strata, triangle_points
 from . import quadratic
 from .nodes import DIRECTIONS, Nodes, direction_weights
@@ -379,9 +380,9 @@ def shadow_rays(x, n_r, tri, n_s, u, v, eps):
     """For each point x (K, 3) facing ``n_r`` and m uniforms (u, v) (K, m): the point on
     triangle ``tri`` (K, 3, 3) facing ``n_s`` that they place (``triangle_points``), the
     product of the cosines at both ends (K, m; 0 where either faces away) and, where it is
-    positive, the shadow ray ``EmbreeRays.clear_between`` casts from x to it: origins,
-    directions (K, m, 3) and lengths (K, m), the target lifted ``eps`` off its triangle
-    towards x (numpy's form of the compiled ``shadow_rays``)."""
+    positive, the shadow ray ``EmbreeRays.clear_between`` casts from x to it (``clear_rays``,
+    the target lifted towards x): origins, directions (K, m, 3) and lengths (K, m) (numpy's
+    form of the compiled ``shadow_rays``)."""
     targets = triangle_points(tri[:, None], u, v)
     d = targets - x[:, None]
     dist = np.linalg.norm(d, axis=-1)
@@ -389,12 +390,7 @@ def shadow_rays(x, n_r, tri, n_s, u, v, eps):
     w = np.maximum(np.einsum("kmc,kc->km", d, n_r), 0) * np.maximum(-np.einsum("kmc,kc->km", d, n_s), 0)
     origin, direction, length = np.zeros(targets.shape), np.zeros(targets.shape), np.zeros(w.shape)
     ki, mi = np.nonzero(w > 0)
-    t, n = targets[ki, mi], n_s[ki]
-    t += eps * np.where(np.einsum("kc,kc->k", x[ki] - t, n) >= 0, 1.0, -1.0)[:, None] * n
-    e = t - x[ki]
-    gap = np.linalg.norm(e, axis=1)
-    e /= np.maximum(gap, 1e-300)[:, None]
-    origin[ki, mi], direction[ki, mi], length[ki, mi] = x[ki] + eps * e, e, np.maximum(gap - 3 * eps, 0.0)
+    origin[ki, mi], direction[ki, mi], length[ki, mi] = clear_rays(x[ki], targets[ki, mi], None, n_s[ki], eps)
     return origin, direction, length, w
 
 
