@@ -119,14 +119,20 @@ def rel_rms(x, ref) -> float:
     return float(np.sqrt(np.mean((x - ref) ** 2) / np.mean(ref ** 2)))
 
 
-def cycles_bakes(job, vmap: VertexMap, samples) -> dict[int, tuple[np.ndarray, float]]:
-    """Cycles vertex bakes of reflected radiance on the result meshes: samples -> (values, seconds)."""
+#: Cycles' seed for reference bakes, apart from the curves' (``cycles_bakes``).
+REFERENCE_SEED = 2
+
+
+def cycles_bakes(job, vmap: VertexMap, samples, seed: int = 1) -> dict[int, tuple[np.ndarray, float]]:
+    """Cycles vertex bakes of reflected radiance on the result meshes: samples -> (values,
+    seconds). Bakes of one ``seed`` share their first samples (a 16-sample bake is the start
+    of a 256-sample one), so a reference to measure others by needs a seed of its own."""
     import bpy
 
     scene = job.bl_scene
     scene.render.engine = "CYCLES"
     cy = scene.cycles
-    cy.device, cy.use_denoising, cy.seed = "CPU", False, 1
+    cy.device, cy.use_denoising, cy.seed = "CPU", False, seed
     cy.use_adaptive_sampling = False           # every vertex gets the samples asked for
     cy.max_bounces = cy.diffuse_bounces = 64
     cy.sample_clamp_direct = cy.sample_clamp_indirect = 0.0
@@ -212,8 +218,8 @@ def accuracy(quick: bool, out_dir: Path):
     job.finish()
     leaves, exact = job.leaves, job.result.B
     vmap = VertexMap(job)
-    bakes = cycles_bakes(job, vmap, (*samples, reference_spp))
-    reference = bakes.pop(reference_spp)[0]
+    bakes = cycles_bakes(job, vmap, samples)
+    reference = cycles_bakes(job, vmap, (reference_spp,), seed=REFERENCE_SEED)[reference_spp][0]
     curves = [solver_curve(m, leaves, exact, vmap, reference) for m in SOLVERS]
     fastest = min(curves, key=lambda c: reach_seconds(c))
     for rays in GATHER_RAYS:

@@ -635,16 +635,14 @@ class HierarchicalRadiosity:
 
     def _pull(self, leaves: np.ndarray, anc: np.ndarray, B: np.ndarray, share: np.ndarray):
         """Element radiosity as area means of their leaves (all of them, the open part, the
-        part in a gap: ``share`` per leaf, each leaf's light spread evenly over it), its
-        spread, and the clusters' tables (of the open parts)."""
+        part in a gap: ``share`` per leaf, each leaf's light spread evenly over it), and the
+        clusters' tables (of the open parts)."""
         nd = self.nodes
         n = nd.size + 1
         w = nd.area[leaves]
         w_open = w * (1.0 - share)
         total, total_open = np.zeros(n), np.zeros(n)
         sums, sums_open = np.zeros((n, 3)), np.zeros((n, 3))
-        lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
-        bmax = B.max(axis=1)
         gapped = share.any()
         for k in range(anc.shape[1]):
             col = anc[:, k]
@@ -655,8 +653,6 @@ class HierarchicalRadiosity:
                 sums[:, c] += np.bincount(col, weights=w * B[:, c], minlength=n)
                 if gapped:
                     sums_open[:, c] += np.bincount(col, weights=w_open * B[:, c], minlength=n)
-            np.minimum.at(lo, col, bmax)
-            np.maximum.at(hi, col, bmax)
         el = np.flatnonzero(total[:-1] > 0)
         self.Bn[el] = sums[el] / total[el, None]
         self.Bopen[el], self.Bgap[el] = self.Bn[el], self.Bn[el]
@@ -666,7 +662,6 @@ class HierarchicalRadiosity:
             self.Bopen[some] = sums_open[some] / total_open[some, None]
             some = el[gap > 1e-9 * total[el]]
             self.Bgap[some] = (sums[some] - sums_open[some]) / (total[some] - total_open[some])[:, None]
-        self.Brange[el] = hi[el] - lo[el]
         table = np.zeros((self.size0, len(DIRECTIONS), 3))
         roots = nd.element_root
         table[roots] = self.proj_root[:, :, None] * self.Bopen[roots][:, None, :]
@@ -677,6 +672,18 @@ class HierarchicalRadiosity:
             table[level] = table[first] + table[first + 1]
             flux[level] = flux[first] + flux[first + 1]
         self.table, self.flux = table, flux
+
+    def _ranges(self, anc: np.ndarray, B: np.ndarray):
+        """``Brange``: the spread (largest channel) of the leaves' B ``B`` under each element
+        (the refine's error estimate reads it; made once a solve, not once a sweep)."""
+        n = self.nodes.size + 1
+        lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+        bmax = B.max(axis=1)
+        for k in range(anc.shape[1]):
+            np.minimum.at(lo, anc[:, k], bmax)
+            np.maximum.at(hi, anc[:, k], bmax)
+        el = np.flatnonzero(np.isfinite(lo[:-1]))
+        self.Brange[el] = hi[el] - lo[el]
 
     def _push_plan(self) -> list:
         """Per element level below the input triangles: (elements, parents, child slots)."""
@@ -745,6 +752,7 @@ class HierarchicalRadiosity:
                 raise Cancelled("solve cancelled; nothing was changed")
         self.H6 = self._gather(leaves, plan)
         self.leaf_ids, self.B = leaves, B
+        self._ranges(anc, B)
         self.H = np.einsum("i,lic->lc", quadratic.MEAN, self.H6)
         self.stage_seconds["solve"] += time.perf_counter() - t0
 
@@ -848,13 +856,13 @@ class HierarchicalRadiosity:
         """H6 (leaves, 6, 3) that the links gather from the leaves' radiosity ``B`` (pulled up
         the trees in place of the solution's, which is put back)."""
         leaves = self.leaf_ids
-        saved = (self.Bn, self.Bopen, self.Bgap, self.Brange, self.table)
-        self.Bn, self.Bopen, self.Bgap, self.Brange = (a.copy() for a in saved[:4])
+        saved = (self.Bn, self.Bopen, self.Bgap, self.table)
+        self.Bn, self.Bopen, self.Bgap = (a.copy() for a in saved[:3])
         try:
             self._pull(leaves, self._ancestors(leaves), B, self.contacts.gap_share(leaves))
             return self._gather(leaves, self._push_plan())
         finally:
-            self.Bn, self.Bopen, self.Bgap, self.Brange, self.table = saved
+            self.Bn, self.Bopen, self.Bgap, self.table = saved
 
     def _emission_gather(self) -> np.ndarray:
         """H6 (leaves, 6, 3) of the emitters' own light alone, over the same links (the part
