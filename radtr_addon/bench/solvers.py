@@ -115,8 +115,23 @@ def reflected(B, leaves) -> np.ndarray:
     return (B - leaves.emission) / np.pi
 
 
-def rel_rms(x, ref) -> float:
-    return float(np.sqrt(np.mean((x - ref) ** 2) / np.mean(ref ** 2)))
+def _row_sums(a) -> np.ndarray:
+    """Sum over each row's channels (a row of a 1-D array is its own entry)."""
+    a = np.asarray(a, float)
+    return a.reshape(len(a), -1).sum(axis=1)
+
+
+def rel_rms(x, ref, weights=None, noise=None) -> float:
+    """RMS of x - ref over the RMS of ref, over rows (vertices, patches) weighted alike, or
+    by ``weights`` (each row's area: the error over the surface, as a picture shows it).
+    ``noise``: the variance of ref's own noise per entry (``adaptive.reference_bake``),
+    taken out of both sums, so that the error is against the light itself: ref's noise adds
+    its variance to every error squared, Cycles' own at a few samples as RadTR's."""
+    x, ref = np.asarray(x, float), np.asarray(ref, float)
+    err, size = _row_sums((x - ref) ** 2), _row_sums(ref ** 2)
+    if noise is not None:
+        err, size = err - _row_sums(noise), size - _row_sums(noise)
+    return float(np.sqrt(max(np.average(err, weights=weights), 0.0) / np.average(size, weights=weights)))
 
 
 #: Cycles' seed for reference bakes, apart from the curves' (``cycles_bakes``).
@@ -201,6 +216,7 @@ def fast_path(leaves, vmap, reference) -> dict:
 def crossing(samples, errors, seconds, target: float):
     """Cycles samples and seconds where its error falls to ``target`` (log-log interpolation)."""
     ls, le, lt = np.log(samples), np.log(errors), np.log(seconds)
+    target = max(target, 1e-6)                               # within the reference's noise
     slope, icpt = np.polyfit(ls, le, 1)                      # error ~ samples^slope (about -1/2)
     s = (np.log(target) - icpt) / slope
     t = np.interp(s, ls, lt, left=None, right=None)

@@ -115,8 +115,6 @@ class ClusterMaps:
 
     @classmethod
     def of(cls, evaluator, L: Links) -> "ClusterMaps":
-        from scipy.sparse import csr_matrix
-
         nodes = evaluator.nodes
         w = nodes.center[L.rcv] - nodes.center[L.src]
         dist = np.linalg.norm(w, axis=1)
@@ -126,11 +124,11 @@ class ClusterMaps:
         geo = np.maximum(-np.einsum("ij,ij->i", nodes.normal[L.rcv], w), 0.0)
         disc = np.pi * dist ** 2 + evaluator._shown_area(L.src, w, L.d, L.dw)
         send, (link, t, v) = _member_entries(evaluator, L, w, True, disc / np.maximum(geo, 1e-300) * (geo > 0))
-        S = csr_matrix((v, (link, t)), shape=(len(send), n))
+        S = _by_rows(link, t, v, (len(send), n))
         shown = nodes.area[L.src] * np.maximum(np.einsum("ij,ij->i", nodes.normal[L.src], w), 0.0)
         take, (link, t, v) = _member_entries(evaluator, L, w, False,
                                              (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0))
-        RT = csr_matrix((v, (link, t)), shape=(len(take), n))
+        RT = _by_rows(link, t, v, (len(take), n))
         return cls(L, [(send, S, take, RT)])
 
     def extended(self, evaluator, keep: np.ndarray, new: Links, links: Links) -> "ClusterMaps":
@@ -172,6 +170,16 @@ class ClusterMaps:
                  for send, S, take, RT in self.blocks]
         return (np.concatenate([p[0] for p in parts]), vstack([p[1] for p in parts], format="csr"),
                 np.concatenate([p[2] for p in parts]), vstack([p[3] for p in parts], format="csr"))
+
+
+def _by_rows(row: np.ndarray, col: np.ndarray, val: np.ndarray, shape: tuple):
+    """CSR matrix of entries already in row order (``_member_entries`` makes them link after
+    link, no two alike), without scipy's sort and sum of a COO matrix (a large scene's 70
+    million entries: 12 s)."""
+    from scipy.sparse import csr_matrix
+
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(row, minlength=shape[0]))])
+    return csr_matrix((val, col, indptr), shape=shape)
 
 
 def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray):
