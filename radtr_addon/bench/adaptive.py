@@ -9,16 +9,19 @@ the vertices of those result meshes (emitters left out) as the reference, each o
 the samples its mean needs (``reference_bake``; at least ``REFERENCE_SPP``, 256 with
 ``--quick``). Table ``adaptive``: leaves, links (and n^2, the uniform matrix), seconds, the
 RMS relative error of reflected radiance (what a user sees: the written ``radtr_radiosity``
-colours / pi) over the vertices and weighted by each vertex's area (``area_``), less the
-reference's own noise (``reference_noise``, measured between two halves of its samples:
-``solvers.rel_rms``; RadTR's error and Cycles' curve both had it added), the worst
-object's mean error, and for each error the samples and seconds Cycles needs for it on the
-same vertices (log-log fit of bakes at ``CURVE_SPP``) with the ratio; table ``stages``:
-seconds by stage. Per vertex, the strips refined along contact lines weigh as much as the
-open walls: in the Cornell box at Quality 0.1 the floor vertices within 1 mm of the blocks'
-footprints (156 of 1,843, under a block or beside it) carried 35% of the squared
-error; by area, an error shows as much as a picture shows it. The plot
-``out/adaptive.png``: both errors against seconds per scene, uniform, hierarchical, Cycles.
+colours / pi) over the vertices and weighted by each vertex's area (``area_``), both less
+the reference's own noise (``solvers.rel_rms``: its variance, measured between two halves
+of its samples, had been added to every squared error, RadTR's and Cycles'; its per-vertex
+size is ``reference_noise``), the worst object's mean error, and for each error the samples
+and seconds Cycles needs for it on the same vertices (``solvers.crossing``: a log-log line
+through the bakes at the first two ``CURVE_SPP``) with the ratio; table ``stages``: seconds
+by stage. Per vertex, the strips refined along contact lines weigh as much as the open
+walls: in the Cornell box at Quality 0.1 the floor vertices within 1 mm of the blocks'
+footprints (156 of 1,843, under a block or beside it) carried 35% of the squared error.
+Both errors are relative to the reference's RMS, so bright vertices weigh most: in the
+furnished room the ceiling over the lamp (0.32% of its area) holds 97% of the reference's
+square. The plot ``out/adaptive.png``: both errors against seconds per scene, uniform,
+hierarchical, Cycles.
 """
 from __future__ import annotations
 
@@ -103,7 +106,8 @@ def reference_bake(job, vertices: ResultVertices, which, weights, least: int = 3
     """Cycles' reflected radiance at the result vertices, in the order of ``radiance``, each
     object baked at its ``bake_samples`` (at least ``least``), and the variance (v, 3) of
     that noisy value: each sample count is baked in two halves by seeds of their own, the
-    mean taken, the variance from their difference (((a - b) / 2)^2). Seeds of its own: a
+    mean taken, the variance from their difference (((a - b) / 2)^2, unbiased but of one
+    degree of freedom per entry: only its sums over many vertices mean anything). Seeds of its own: a
     curve's bake by the reference's seed is the start of it, and measured closer to it than
     it is to the light (the Cornell box's result vertices at Quality 0.1: 7.1% and 3.2% at
     16 and 64 samples against a 256-sample bake by their seed; 7.3% and 3.6% against two
@@ -175,7 +179,7 @@ def scene_rows(scene: str, quick: bool) -> tuple[list[dict], list[dict]]:
             cy_err = [rel_rms(bakes[s][0], reference, weights, noise) for s in curve_spp]
             spp, cycles_s = crossing(list(curve_spp), cy_err, cy_s, error)
             tag = "" if weights is None else "area_"
-            row.update({key: round(error, 4), f"{tag}cycles_spp": int(round(spp)),
+            row.update({key: round(error, 4), f"{tag}cycles_spp": float(np.round(spp)),
                         f"{tag}cycles_s": round(cycles_s, 2), f"{tag}ratio": round(cycles_s / seconds, 2)})
             curve.update({key: error, f"{tag}cycles": list(zip(cy_s, cy_err))})
         row.update({"worst_object": round(worst_object(values, reference, which, areas), 4), "stages": stages})

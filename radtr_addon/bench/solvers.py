@@ -214,14 +214,19 @@ def fast_path(leaves, vmap, reference) -> dict:
 
 
 def crossing(samples, errors, seconds, target: float):
-    """Cycles samples and seconds where its error falls to ``target`` (log-log interpolation)."""
+    """Cycles samples and seconds where its error falls to ``target`` (log-log line through
+    its bakes; beyond them, seconds in proportion to samples). NaN where an error is not
+    positive (within the reference's noise: not resolved)."""
+    if target <= 0 or min(errors) <= 0:
+        return float("nan"), float("nan")
     ls, le, lt = np.log(samples), np.log(errors), np.log(seconds)
-    target = max(target, 1e-6)                               # within the reference's noise
     slope, icpt = np.polyfit(ls, le, 1)                      # error ~ samples^slope (about -1/2)
     s = (np.log(target) - icpt) / slope
-    t = np.interp(s, ls, lt, left=None, right=None)
-    if s > ls[-1]:                                           # beyond the last bake: time ~ samples
+    t = np.interp(s, ls, lt)
+    if s > ls[-1]:
         t = lt[-1] + (s - ls[-1])
+    elif s < ls[0]:
+        t = lt[0] + (s - ls[0])
     return float(np.exp(s)), float(np.exp(t))
 
 

@@ -178,6 +178,8 @@ def _by_rows(row: np.ndarray, col: np.ndarray, val: np.ndarray, shape: tuple):
     million entries: 12 s)."""
     from scipy.sparse import csr_matrix
 
+    if np.any(row[1:] < row[:-1]):
+        raise ValueError("cluster map entries out of row order")
     indptr = np.concatenate([[0], np.cumsum(np.bincount(row, minlength=shape[0]))])
     return csr_matrix((val, col, indptr), shape=shape)
 
@@ -682,7 +684,7 @@ class HierarchicalRadiosity:
         self.table, self.flux = table, flux
 
     def _ranges(self, anc: np.ndarray, B: np.ndarray):
-        """``Brange``: the spread (largest channel) of the leaves' B ``B`` under each element
+        """``Brange``: the spread of the leaves' largest channel of ``B`` under each element
         (the refine's error estimate reads it; made once a solve, not once a sweep)."""
         n = self.nodes.size + 1
         lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
