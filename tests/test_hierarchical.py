@@ -908,7 +908,17 @@ def test_points_on_nodes_fall_on_their_triangles_by_area(form, monkeypatch):
             assert np.allclose(xc, x, atol=1e-12) and np.array_equal(nc, n)
 
 
-def test_member_shares_compiled_equal_numpy_form(monkeypatch):
+@pytest.fixture(scope="module")
+def tiled_room():
+    """A 4 x 4 x 2.5 m room of 3 x 3 tiles a wall, lit by its walls, with two tiled boxes on
+    its floor, solved at Quality 0.3: links with small cluster ends (``ClusterMaps``)."""
+    room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 3)]
+    boxes = [q for x in (0.5, 2.5) for a, u, v in closed_box((x, 1, 0), (x + 0.8, 1.6, 0.7), False)
+             for q in tiled(a, u, v, 2)]
+    return run(build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)]), quality=0.3)[0]
+
+
+def test_member_shares_compiled_equal_numpy_form(monkeypatch, tiled_room):
     """The (link, member) entries of the cluster maps, compiled where numba builds, equal
     numpy's form on the links of a tiled room with boxes: each member's share A max(0, n.w)
     sent, max(0, -n.w) taken; a cluster's sent shares add up to no more than its area, and
@@ -918,10 +928,7 @@ def test_member_shares_compiled_equal_numpy_form(monkeypatch):
 
     if compiled.kernel("member_shares") is None:
         pytest.skip("numba cannot build the kernel here (the warning says why)")
-    room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 3)]
-    boxes = [q for x in (0.5, 2.5) for a, u, v in closed_box((x, 1, 0), (x + 0.8, 1.6, 0.7), False)
-             for q in tiled(a, u, v, 2)]
-    hr, _ = run(build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)]), quality=0.3)
+    hr = tiled_room
     nd, ev, L = hr.nodes, hr.evaluator, hr.links
     links = np.flatnonzero(nd.cluster[L.src] & (ev.size(L.src) <= EXACT_CLUSTER))
     assert len(links) > 100
@@ -1040,7 +1047,7 @@ def test_element_shadow_rays_compiled_equal_numpy_form_and_see_past_a_box(monkey
     assert np.all(V[:400] == 0) and np.all(V[400:] == 1)
 
 
-def test_cluster_maps_made_straight_in_rows_equal_scipys_from_entries():
+def test_cluster_maps_made_straight_in_rows_equal_scipys_from_entries(tiled_room):
     """``ClusterMaps`` builds its CSR matrices straight from the entries, which come link
     after link (no scipy sort and sum of a COO matrix: 12 s on the atrium); on a tiled room
     with boxes, sent and taken, they equal scipy's from the same entries, and entries out of
@@ -1049,10 +1056,7 @@ def test_cluster_maps_made_straight_in_rows_equal_scipys_from_entries():
 
     from radtr_addon.hierarchical.solve import _by_rows, _member_entries
 
-    room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 3)]
-    boxes = [q for x in (0.5, 2.5) for a, u, v in closed_box((x, 1, 0), (x + 0.8, 1.6, 0.7), False)
-             for q in tiled(a, u, v, 2)]
-    hr, _ = run(build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)]), quality=0.3)
+    hr = tiled_room
     nd, L = hr.nodes, hr.links
     w = nd.center[L.rcv] - nd.center[L.src]
     w /= np.linalg.norm(w, axis=1, keepdims=True)

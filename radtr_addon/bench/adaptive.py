@@ -106,12 +106,12 @@ def reference_bake(job, vertices: ResultVertices, which, weights, least: int = 3
     """Cycles' reflected radiance at the result vertices, in the order of ``radiance``, each
     object baked at its ``bake_samples`` (at least ``least``), and the variance (v, 3) of
     that noisy value: each sample count is baked in two halves by seeds of their own, the
-    mean taken, the variance from their difference (((a - b) / 2)^2, unbiased but of one
-    degree of freedom per entry: only its sums over many vertices mean anything). Seeds of its own: a
-    curve's bake by the reference's seed is the start of it, and measured closer to it than
-    it is to the light (the Cornell box's result vertices at Quality 0.1: 7.1% and 3.2% at
-    16 and 64 samples against a 256-sample bake by their seed; 7.3% and 3.6% against two
-    256-sample bakes by others)."""
+    mean taken, the variance from their difference (((a - b) / 2)^2: unbiased, but of one
+    degree of freedom per entry, so only its sums over many vertices mean anything). Seeds
+    of its own: a curve's bake by the reference's seed is the start of it, and measured
+    closer to it than it is to the light (the Cornell box's result vertices at Quality 0.1:
+    7.1% and 3.2% at 16 and 64 samples against a 256-sample bake by their seed; 7.3% and
+    3.6% against two 256-sample bakes by others)."""
     spp = bake_samples(which, weights, least=least)
     out, noise = np.empty((len(which), 3)), np.empty((len(which), 3))
     for s in map(int, np.unique(spp)):
