@@ -137,6 +137,55 @@ def member_shares(lo, count, link, order, normals, areas, w, sending):
 
 
 @njit(cache=True)
+def _member(e, k, cluster, span, order, node_tri, node_normal, corners, normals):
+    """Triangle k of node e and its normal: a cluster's k-th input triangle, an element's own."""
+    if cluster[e]:
+        t = order[span[e, 0] + k]
+        return corners[t], normals[t]
+    return node_tri[e], node_normal[e]
+
+
+@njit(parallel=True, cache=True)
+def _facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, tol, out):
+    for m in prange(len(src)):
+        s, r = src[m], rcv[m]
+        a = span[s, 1] - span[s, 0] if cluster[s] else 1
+        b = span[r, 1] - span[r, 0] if cluster[r] else 1
+        found = False
+        for i in range(a):
+            ts, ns = _member(s, i, cluster, span, order, node_tri, node_normal, corners, normals)
+            for j in range(b):
+                tr, nr = _member(r, j, cluster, span, order, node_tri, node_normal, corners, normals)
+                ahead_r, ahead_s = -np.inf, -np.inf
+                for k in range(3):
+                    ahead_r = max(ahead_r, ns[0] * (tr[k, 0] - ts[0, 0]) + ns[1] * (tr[k, 1] - ts[0, 1])
+                                  + ns[2] * (tr[k, 2] - ts[0, 2]))
+                    ahead_s = max(ahead_s, nr[0] * (ts[k, 0] - tr[0, 0]) + nr[1] * (ts[k, 1] - tr[0, 1])
+                                  + nr[2] * (ts[k, 2] - tr[0, 2]))
+                if ahead_r > tol and ahead_s > tol:
+                    found = True
+                    break
+            if found:
+                break
+        out[m] = found
+
+
+def facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, tol):
+    """``hierarchical.links.Evaluator.facing`` for links (src, rcv) of nodes: True where some
+    triangle of one end has a corner of some triangle of the other ahead of its plane (more
+    than ``tol``) and that one has a corner of it ahead of its own, pair by pair until one
+    is found (a cluster's input triangles ``order[span[e, 0]:span[e, 1]]``, an element its
+    own ``node_tri``)."""
+    src, rcv = _ints(src), _ints(rcv)
+    if len(src) != len(rcv):
+        raise ValueError(f"{len(src)} sources but {len(rcv)} receivers")
+    out = np.empty(len(src), np.bool_)
+    _facing(src, rcv, np.ascontiguousarray(cluster, np.bool_), _ints(span), _ints(order), _reals(node_tri),
+            _reals(node_normal), _reals(corners), _reals(normals), float(tol), out)
+    return out
+
+
+@njit(cache=True)
 def _ray_between(o0, o1, o2, t0, t1, t2, a0, a1, a2, b0, b1, b2, eps):
     """``formfactors.raycast.clear_rays`` for one pair: origin o facing a, target t facing b
     (a zero normal: not lifted); returns the ray's origin, unit direction and length."""
@@ -267,6 +316,10 @@ SMOKE = {
                             np.array([[0.0, 0.0, -1.0]]), np.full((1, 1), 0.5), np.full((1, 1), 0.5), 1e-6),
     "cosine_directions": lambda: (np.full((1, 1), 0.5), np.full((1, 1), 0.5), np.array([[0.0, 0.0, 1.0]])),
     "clear_rays": lambda: (np.zeros((1, 3)), np.ones((1, 3)), np.array([[0.0, 0.0, 1.0]]), None, 1e-6),
+    "facing": lambda: (np.array([0]), np.array([1]), np.array([False, False]), np.zeros((2, 2), np.int64),
+                       np.array([0]),
+                       np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0.0, 0, 1], [0, 1, 1], [1, 0, 1]]]),
+                       np.array([[0.0, 0, 1], [0, 0, -1]]), np.zeros((1, 3, 3)), np.eye(3)[:1], 1e-9),
     "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
                               np.ones(1), np.eye(3)[:1], True),
 }
