@@ -674,6 +674,26 @@ def test_facing_compiled_equals_numpy_form_on_clusters(monkeypatch, tiled_room):
     assert 0.1 < (~got[big]).mean() < 0.9 and 0.1 < (~got[~big]).mean() < 0.9
 
 
+def test_elements_that_cannot_split_take_the_outside_lights_mean_alone():
+    """The outside light's spread over an element only decides whether it splits: with the
+    least area above every triangle's, nothing can split and the spread is left at 0, and
+    the mean over each element's cells is the one made with it (a light rising along x)."""
+    from radtr_addon.hierarchical.nodes import Nodes
+
+    def external(tris, normals, bary, spread=False):
+        points = np.einsum("pc,ncd->npd", bary, tris)
+        H = np.repeat(1.0 + points[..., :1], 3, axis=2)
+        return (H, H) if spread else H
+
+    scene = tiled_box(2)
+    free = Nodes(scene, external, max_level=8, min_area=0.0)
+    fixed = Nodes(scene, external, max_level=8, min_area=scene.areas.max())
+    roots = free.element_root
+    assert free.can_split(roots).all() and not fixed.can_split(roots).any()
+    assert np.allclose(fixed.H_ext[roots], free.H_ext[roots], rtol=1e-12)
+    assert (free.H_spread[roots] > 0).mean() > 0.5 and not fixed.H_spread[roots].any()
+
+
 def test_a_refine_in_slices_gives_the_same_links_and_light(monkeypatch):
     """The refine runs in slices (progress between them, cancel between them); in a closed
     box (no shadows) slices of 50 candidates give the links and the radiosity of one slice.

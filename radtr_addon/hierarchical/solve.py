@@ -364,7 +364,7 @@ class HierarchicalRadiosity:
         t0 = time.perf_counter()
         self.scene = scene
         self.shown = np.ones(scene.n, bool) if shown is None else np.asarray(shown, bool)
-        self.nodes = nd = Nodes(scene, external)
+        self.nodes = nd = Nodes(scene, external, s.max_level, s.min_area * float(scene.areas.sum()))
         self.caster = caster or EmbreeRays(scene, 1)
         self.evaluator = Evaluator(nd, self.caster, s.seed)
         self.contacts = Proximity(nd, self.caster, s.max_level)
@@ -383,7 +383,6 @@ class HierarchicalRadiosity:
         if not self.power > 0:
             raise SceneError("nothing emits light: give a material emission or add a light that reaches a surface")
         self.eps = s.epsilon * self.power / float(scene.areas.sum())     # W/m^2
-        self.min_area = s.min_area * float(scene.areas.sum())
         self.Bn = nd.E[:nd.size].copy()
         self.Bopen, self.Bgap = self.Bn.copy(), self.Bn.copy()     # of the open part and of the gap (contacts)
         self.Brange = np.zeros(nd.size)
@@ -456,10 +455,6 @@ class HierarchicalRadiosity:
         self.Bopen = np.concatenate([self.Bopen, self.Bopen[par]])
         self.Bgap = np.concatenate([self.Bgap, self.Bgap[par]])
         self.Brange = np.concatenate([self.Brange, np.zeros(nd.size - old)])
-
-    def can_split(self, n: np.ndarray) -> np.ndarray:
-        nd = self.nodes
-        return nd.cluster[n] | ((nd.level[n] < self.settings.max_level) & (nd.area[n] > 4 * self.min_area))
 
     def errors(self, L: Links) -> np.ndarray:
         """Error estimate of each link (see ``links``): W/m^2 at its receiver, worst channel."""
@@ -545,7 +540,7 @@ class HierarchicalRadiosity:
         """(need, split_src) per link: over the bound (the larger end split), or into a mixed
         receiver (``contacts``: the receiver split), where an end can still split."""
         nd = self.nodes
-        cs, cr = self.can_split(L.src), self.can_split(L.rcv)
+        cs, cr = self.nodes.can_split(L.src), self.nodes.can_split(L.rcv)
         mixed = self.contacts.mixed(L.rcv) & cr
         leak = self._leaks(L) & cs & ~mixed
         split_src = (cs & ((nd.radius[L.src] >= nd.radius[L.rcv]) | ~cr) & ~mixed) | leak
@@ -617,7 +612,7 @@ class HierarchicalRadiosity:
             return
         while True:
             leaves = nd.leaves()
-            over = leaves[(nd.H_spread[leaves] > self.eps) & self.can_split(leaves)]
+            over = leaves[(nd.H_spread[leaves] > self.eps) & self.nodes.can_split(leaves)]
             if not len(over):
                 return
             for lo in range(0, len(over), LIGHT_CHUNK):
