@@ -677,12 +677,13 @@ def test_facing_compiled_equals_numpy_form_on_clusters(monkeypatch, tiled_room):
 def test_elements_that_cannot_split_take_the_outside_lights_mean_alone():
     """The outside light's spread over an element only decides whether it splits: with the
     least area above every triangle's, nothing can split and the spread is left at 0, and
-    the mean over each element's cells is the one made with it (a light rising along x)."""
+    the mean over each element's cells is the one made with it (a light curving along x, so
+    a mean over other points, the corners too, would differ)."""
     from radtr_addon.hierarchical.nodes import Nodes
 
     def external(tris, normals, bary, spread=False):
         points = np.einsum("pc,ncd->npd", bary, tris)
-        H = np.repeat(1.0 + points[..., :1], 3, axis=2)
+        H = np.repeat(1.0 + points[..., :1] ** 2, 3, axis=2)
         return (H, H) if spread else H
 
     scene = tiled_box(2)

@@ -147,6 +147,7 @@ def _member(e, k, cluster, span, order, node_tri, node_normal, corners, normals)
 
 @njit(parallel=True, cache=True)
 def _facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, tol, out):
+    """out[m]: whether some pair of the two ends' triangles has each one's corner ahead of the other's plane."""
     for m in prange(len(src)):
         s, r = src[m], rcv[m]
         a = span[s, 1] - span[s, 0] if cluster[s] else 1

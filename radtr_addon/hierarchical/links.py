@@ -68,6 +68,7 @@ BATCH = 20_000
 #: whether any two of their triangles face each other (``Evaluator.facing``): numpy's form
 #: holds every pair of a batch at once, the compiled one stops at the first facing pair.
 FACING_PAIRS = 16
+#: The same where the compiled test runs (``compiled.kernels.facing``).
 FACING_PAIRS_COMPILED = 4096
 
 
