@@ -11,6 +11,7 @@ from bpy.props import (
     StringProperty,
 )
 
+from .radtr_addon.hierarchical.solve import GATHER_ADAPTIVE
 from .radtr_addon.lowrank.backends import BACKENDS, DEFAULT_BACKEND
 from .radtr_addon.settings import AUTO_GATHER_RAYS, Settings
 
@@ -116,7 +117,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
         name="Vertex Gather", default=_D.gather_rays, min=-1, soft_max=4096,
         description="Rays per vertex for a final gather of the solved light into the vertex colours "
                     "(sharper corners and shadows); 0 shows the mean of the patches around each vertex "
-                    "(hierarchical: each leaf's quadratic); -1 is auto: "
+                    f"(hierarchical: each leaf's quadratic; from {GATHER_ADAPTIVE} rays the count is a mean, "
+                    "more where the light is noisier); -1 is auto: "
                     f"{AUTO_GATHER_RAYS} with the hierarchical solver, 0 with the others")
     lowrank_level: IntProperty(
         name="Low-Rank Level", default=1, min=0, max=12,

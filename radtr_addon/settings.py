@@ -67,7 +67,8 @@ class Settings:
     precision: str = option("float64", "accumulation precision", PRECISIONS)
     ambient: bool = option(False, "shooting: show unshot light as Cohen's ambient term")
     gather_rays: int = option(-1, "final gather of the vertex colours with this many rays per vertex "
-                                  f"(-1: auto, {AUTO_GATHER_RAYS} with hierarchical, none otherwise; "
+                                  f"(-1: auto, {AUTO_GATHER_RAYS} with hierarchical, none otherwise; with "
+                                  "hierarchical a mean, more where the light is noisier; "
                                   "0: none, the patch mean, or with hierarchical each leaf's quadratic)")
     sky: str = option("none", "apply a research sky through sky form factors", SKIES)
     sky_radiance: float = option(1.0, "uniform radiance, or the CIE sky's zenith radiance (W/m^2/sr)")

@@ -59,6 +59,12 @@ CORNER_RAYS = 16
 #: Rays of the final gather cast per batch (``_gather_steps``): bounds its memory to a few
 #: hundred MB whatever the rays per vertex (4,096 vertices a batch at 256 rays).
 GATHER_BATCH_RAYS = 1 << 20
+#: From this many final-gather rays a vertex on, a pilot of ``GATHER_PILOT`` rays a vertex
+#: measures each vertex's noise and the rest of the rays go where it is (``gather_sides``).
+GATHER_ADAPTIVE = 128
+GATHER_PILOT = 16
+#: Least and most rays a vertex gets in an adaptive final gather, as multiples of the mean.
+GATHER_SPREAD = (0.25, 16.0)
 #: Leaves whose reflected radiosity is over this many times the area mean are hot (the ceiling
 #: over a lamp hung just under it: 4,600 leaves, 0.75 m^2, 60% of a furnished room's reflected
 #: power): the final gather samples them as lights too (``_hot_light``), as well as by its
@@ -343,6 +349,44 @@ def mis_share(cos_p: np.ndarray, cos_x: np.ndarray, density: np.ndarray, r: np.n
     return g / np.maximum(rays * g + np.pi * samples * density * r ** 2, 1e-300)
 
 
+def gather_sides(rays: int, noise: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """Grid sides (k,) of the final gather's cosine rays at k points, ``rays`` a point on
+    average, each point's count in proportion to (sqrt(area) x noise)^(1/3) within
+    ``GATHER_SPREAD`` x ``rays``: ``noise`` the variance of a pilot gather's estimate there,
+    ``area`` the point's share of the result mesh. A stratified gather's variance falls about
+    as rays^-2 (on the Cornell box from 64 to 256 rays 14x, median of its points), and the
+    counts n that make sum w v0 (n0 / n)^2 least for a given sum n go as (w v0)^(1/3). Weights
+    w = sqrt(area) sit between per vertex (1) and per area (area, where a few large vertices
+    on open walls take most rays and the thin strips along contacts starve): on that box,
+    from the pilot's noise, variance per vertex 0.98x and by area 0.16x an even share's."""
+    drive = np.cbrt(np.sqrt(area) * np.maximum(noise, 0.0))
+    least, most = GATHER_SPREAD[0] * rays, GATHER_SPREAD[1] * rays
+    if not drive.any():
+        counts = np.full(len(drive), float(rays))
+    else:
+        lo, hi = least / drive.max(), most / max(float(drive[drive > 0].min()), 1e-300)
+        for _ in range(60):                                # the scale whose clipped counts average rays
+            scale = np.sqrt(lo * hi)
+            lo, hi = (scale, hi) if np.clip(scale * drive, least, most).mean() < rays else (lo, scale)
+        counts = np.clip(np.sqrt(lo * hi) * drive, least, most)
+    return np.maximum(1, np.rint(np.sqrt(counts))).astype(int)
+
+
+@dataclass
+class GatherTargets:
+    """What a final gather's rays take their light from: the leaves (``caster``, by row of
+    ``leaf_ids``), the reflected ``light`` each sends (``_open_light``), which are ``hot``,
+    at what ``density`` per unit area the shadow rays draw them, which are ``flat``
+    (``_shape``), and each input triangle's two-sided ``twin``."""
+
+    caster: object
+    light: np.ndarray
+    hot: np.ndarray
+    density: np.ndarray
+    twin: np.ndarray
+    flat: np.ndarray
+
+
 class HierarchicalRadiosity:
     """Hierarchical radiosity over a PatchScene of input triangles.
 
@@ -426,7 +470,8 @@ class HierarchicalRadiosity:
             return f"hierarchical round {len(self.rounds) + 1}, {self._progress}"
         if self.finishing:
             rays = self.settings.gather_rays
-            how = f" (final gather, {rays:,} rays each)" if rays else ""
+            each = "a vertex on average" if rays >= GATHER_ADAPTIVE else "each"
+            how = f" (final gather, {rays:,} rays {each})" if rays else ""
             return f"light at the result vertices{how}: {self.finished:.0%}"
         if self.done:
             return f"hierarchical, {len(self.rounds)} rounds, {len(self.links):,} links"
@@ -943,20 +988,23 @@ class HierarchicalRadiosity:
     def _gather_steps(self, rays: int):
         """A final gather of the leaves' reflected light at the corners of the result mesh
         (``_result_mesh``), in batches of ``GATHER_BATCH_RAYS``: yields the fraction done,
-        returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex (rounded to a
-        square grid, ``grid_side``; ``_corner_points``), each taking the radiosity less
-        emission of the leaf whose front it hits where it hits it (``_shape``: a point on a
-        ceiling by a wall sees the wall's dark top strip at close range, and with the wall
-        leaf's mean the Cornell box's ceiling came out +7.5%; the hidden backs of two-sided
-        lamps too; a leaf on a floor a box rests on, its open part's: ``_open_light``); the
-        hot leaves' light by shadow rays to them as well (``_hot_light``, ``mis_share``). A
-        link hands its receiver the light of a partly seen source at the source's mean radiosity;
-        many such links, each within epsilon, brought the furniture of a room the hot ceiling
-        over its lamp, hidden but for a 1 cm slot, 15-60% too bright (2-3% of each object's
-        light). Emitters and the outside lights are added at the corners exactly
-        (``_emitters_at``, ``nodes.external``)."""
+        returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex on average
+        (each vertex's count rounded to a square grid, ``grid_side``; ``_corner_points``), each
+        taking the radiosity less emission of the leaf whose front it hits where it hits it
+        (``_shape``: a point on a ceiling by a wall sees the wall's dark top strip at close
+        range, and with the wall leaf's mean the Cornell box's ceiling came out +7.5%; the
+        hidden backs of two-sided lamps too; a leaf on a floor a box rests on, its open
+        part's: ``_open_light``); the hot leaves' light by shadow rays to them as well
+        (``_hot_light``, ``mis_share``). A link hands its receiver the light of a partly seen
+        source at the source's mean radiosity; many such links, each within epsilon, brought
+        the furniture of a room the hot ceiling over its lamp, hidden but for a 1 cm slot,
+        15-60% too bright (2-3% of each object's light). Emitters and the outside lights are
+        added at the corners exactly (``_emitters_at``, ``nodes.external``).
+        From ``GATHER_ADAPTIVE`` rays on, a pilot of ``GATHER_PILOT`` rays a vertex measures
+        each vertex's noise and the rest go where it is (``gather_sides``)."""
         from ..formfactors.raycast import EmbreeRays
-        from ..sampling import cosine_directions, grid_side, stratified
+        from ..sampling import grid_side
+        from ..tasks import scaled
 
         nd, sc = self.nodes, self.scene
         leaves = self.leaf_ids
@@ -965,50 +1013,88 @@ class HierarchicalRadiosity:
                                        sc.object_index[nd.root[leaves]], sc.material_index[nd.root[leaves]]), 1)
         reflected = self.B - sc.emission[nd.root[leaves]]
         glow = reflected.mean(axis=1)
-        seen = self._open_light(caster, reflected)
         hot = glow > HOT_FACTOR * np.average(glow, weights=nd.area[leaves])
         density = np.where(hot, glow, 0.0) / max(float((glow * nd.area[leaves])[hot].sum()), 1e-300)
-        twin = self.contacts.twin
-        flat = self.contacts.covered[nd.root[leaves]]
+        seen = GatherTargets(caster, self._open_light(caster, reflected), hot, density, self.contacts.twin,
+                             self.contacts.covered[nd.root[leaves]])
         p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
-        m = grid_side(rays)
-        shadow = max(1, int(m * m * HOT_SHARE)) if hot.any() else 0
-        batch = max(1, GATHER_BATCH_RAYS // (m * m))
-        H = np.zeros((len(p), 3))
-        for start in range(0, len(p), batch):
-            i = np.arange(start, min(start + batch, len(p)))
-            rng = np.random.default_rng((self.settings.seed, 3, start))
-            u, v = stratified(m, rng.random((len(i), m * m)), rng.random((len(i), m * m)))
-            dirs = cosine_directions(u, v, n[i]).reshape(-1, 3)
-            origins = np.repeat(p[i], m * m, axis=0)
-            dist, hit = caster.first_hit(origins, dirs)
-            row = hit.copy()                                 # rows of leaf_ids, -1 for none
-            h = np.flatnonzero(hit >= 0)
-            behind = h[np.einsum("kc,kc->k", dirs[h], caster.scene.normals[hit[h]]) > 0]
-            row[behind] = -1
-            other = twin[nd.root[leaves[hit[behind]]]]      # the back of a two-sided face: its twin's leaf
-            behind, other = behind[other >= 0], other[other >= 0]
-            x = origins + dist[:, None] * dirs
-            lam = np.zeros((len(row), 3))
-            front = np.flatnonzero(row >= 0)
-            lam[front] = barycentric(x[front], nd.tri[leaves[row[front]]])
-            if len(behind):
-                leaf_hit, lam[behind] = self.leaf_at(other, barycentric(x[behind], sc.vertices[sc.triangles[other]]))
-                row[behind] = np.searchsorted(leaves, leaf_hit)
-            got = np.where(row[:, None] >= 0, seen[np.maximum(row, 0)], 0.0)
-            h = np.flatnonzero(row >= 0)
-            got[h] *= self._shape(row[h], lam[h], flat)
-            if shadow:                                       # a hot leaf hit: its share by MIS
-                h = np.flatnonzero((row >= 0) & hot[np.maximum(row, 0)])
-                cos_p = np.einsum("kc,kc->k", dirs[h], n[i][h // (m * m)])
-                cos_x = np.abs(np.einsum("kc,kc->k", dirs[h], nd.normal[leaves[row[h]]]))
-                got[h] *= m * m * mis_share(cos_p, cos_x, density[row[h]], dist[h], m * m, shadow)[:, None]
-            H[i] = got.reshape(len(i), m * m, 3).mean(axis=1)
-            if shadow:
-                H[i] += self._hot_light(caster, np.flatnonzero(hot), seen, flat, density, p[i], n[i], m * m,
-                                        shadow, rng)
-            yield (i[-1] + 1) / len(p)
+        if rays < GATHER_ADAPTIVE:
+            H, _ = yield from self._gather_pass(seen, p, n, np.full(len(p), grid_side(rays)), 3)
+            return H[back].reshape(len(leaf), 3, 3)
+        share = GATHER_PILOT / rays
+        _, var = yield from scaled(self._gather_pass(seen, p, n, np.full(len(p), grid_side(GATHER_PILOT)), 5),
+                                   0.0, share)
+        rho = np.zeros((len(p), 3))
+        rho[back] = np.repeat(nd.rho[leaf], 3, axis=0)
+        area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1) / 6
+        area = np.bincount(back, weights=np.repeat(area, 3), minlength=len(p))
+        sides = gather_sides(rays - GATHER_PILOT, (rho ** 2 * var).sum(axis=1), area)
+        H, _ = yield from scaled(self._gather_pass(seen, p, n, sides, 3), share, 1 - share)
         return H[back].reshape(len(leaf), 3, 3)
+
+    def _gather_pass(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, sides: np.ndarray, tag: int):
+        """Gathered light (k, 3) at points ``p`` facing ``n``, by ``sides``^2 stratified cosine
+        rays each (``_gather_batch``), and the variance of each point's estimate (k, 3); yields
+        the fraction of the rays cast. ``tag`` keeps one pass's random draws apart from another's."""
+        H, var = np.zeros((len(p), 3)), np.zeros((len(p), 3))
+        total, done = float((sides.astype(float) ** 2).sum()), 0.0
+        for m in np.unique(sides):
+            at = np.flatnonzero(sides == m)
+            batch = max(1, GATHER_BATCH_RAYS // (m * m))
+            for first in range(0, len(at), batch):
+                i = at[first:first + batch]
+                rng = np.random.default_rng((self.settings.seed, tag, int(m), first))
+                H[i], var[i] = self._gather_batch(seen, p[i], n[i], int(m), rng)
+                done += len(i) * m * m
+                yield done / total
+        return H, var
+
+    def _gather_batch(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, m: int, rng):
+        """The light (k, 3) an m x m grid of cosine rays (and the hot leaves' shadow rays)
+        gathers at each of points ``p`` facing ``n``, and the variance of each estimate (k, 3):
+        by pairs of cells next to each other in azimuth (the strata collapsed in twos, which
+        overstates a smooth light's), by the rays' spread for odd m, plus the shadow rays'."""
+        from ..sampling import cosine_directions, stratified
+
+        nd, sc = self.nodes, self.scene
+        leaves, caster, rays = self.leaf_ids, seen.caster, m * m
+        shadow = max(1, int(rays * HOT_SHARE)) if seen.hot.any() else 0
+        u, v = stratified(m, rng.random((len(p), rays)), rng.random((len(p), rays)))
+        dirs = cosine_directions(u, v, n).reshape(-1, 3)
+        origins = np.repeat(p, rays, axis=0)
+        dist, hit = caster.first_hit(origins, dirs)
+        row = hit.copy()                                     # rows of leaf_ids, -1 for none
+        h = np.flatnonzero(hit >= 0)
+        behind = h[np.einsum("kc,kc->k", dirs[h], caster.scene.normals[hit[h]]) > 0]
+        row[behind] = -1
+        other = seen.twin[nd.root[leaves[hit[behind]]]]      # the back of a two-sided face: its twin's leaf
+        behind, other = behind[other >= 0], other[other >= 0]
+        x = origins + dist[:, None] * dirs
+        lam = np.zeros((len(row), 3))
+        front = np.flatnonzero(row >= 0)
+        lam[front] = barycentric(x[front], nd.tri[leaves[row[front]]])
+        if len(behind):
+            leaf_hit, lam[behind] = self.leaf_at(other, barycentric(x[behind], sc.vertices[sc.triangles[other]]))
+            row[behind] = np.searchsorted(leaves, leaf_hit)
+        got = np.where(row[:, None] >= 0, seen.light[np.maximum(row, 0)], 0.0)
+        h = np.flatnonzero(row >= 0)
+        got[h] *= self._shape(row[h], lam[h], seen.flat)
+        if shadow:                                           # a hot leaf hit: its share by MIS
+            h = np.flatnonzero((row >= 0) & seen.hot[np.maximum(row, 0)])
+            cos_p = np.einsum("kc,kc->k", dirs[h], n[h // rays])
+            cos_x = np.abs(np.einsum("kc,kc->k", dirs[h], nd.normal[leaves[row[h]]]))
+            got[h] *= rays * mis_share(cos_p, cos_x, seen.density[row[h]], dist[h], rays, shadow)[:, None]
+        got = got.reshape(len(p), rays, 3)
+        H = got.mean(axis=1)
+        if m % 2 == 0:
+            pairs = got.reshape(len(p), rays // 2, 2, 3)
+            var = ((pairs[:, :, 0] - pairs[:, :, 1]) ** 2).sum(axis=1) / rays ** 2
+        else:
+            var = got.var(axis=1) / rays
+        if shadow:
+            more, more_var = self._hot_light(seen, p, n, rays, shadow, rng)
+            H, var = H + more, var + more_var
+        return H, var
 
     def _shape(self, rows: np.ndarray, lam: np.ndarray, flat: np.ndarray) -> np.ndarray:
         """(m, 3) how the reflected light of leaves ``rows`` (of ``leaf_ids``) at barycentric
@@ -1090,17 +1176,17 @@ class HierarchicalRadiosity:
             found |= fill
         return values, found
 
-    def _hot_light(self, caster, hot: np.ndarray, reflected: np.ndarray, flat: np.ndarray, density: np.ndarray,
-                   p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng) -> np.ndarray:
-        """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (rows ``hot``
-        of ``leaf_ids``) sending ``reflected`` (shaped as the cosine rays take it: ``_shape``
-        with ``flat``), by ``samples`` shadow rays per point to points
-        on them drawn by power (leaf by its B x area, stratified, then uniform on it:
-        ``density`` per unit area), weighed against the ``rays`` cosine rays that may hit
-        them too (``mis_share``)."""
+    def _hot_light(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng):
+        """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (``seen.hot``)
+        sending ``seen.light`` (shaped as the cosine rays take it: ``_shape``), by ``samples``
+        shadow rays per point to points on them drawn by power (leaf by its B x area,
+        stratified, then uniform on it: ``seen.density`` per unit area), weighed against the
+        ``rays`` cosine rays that may hit them too (``mis_share``); and its variance (len(p), 3)
+        by the samples' spread."""
         from ..sampling import strata, triangle_points
 
-        nd = self.nodes
+        nd, caster, density = self.nodes, seen.caster, seen.density
+        hot = np.flatnonzero(seen.hot)
         ids = self.leaf_ids[hot]
         cdf = np.cumsum(density[hot] * nd.area[ids])
         k = np.minimum(np.searchsorted(cdf / cdf[-1], strata(samples, rng.random((len(p), samples)))), len(ids) - 1)
@@ -1111,12 +1197,12 @@ class HierarchicalRadiosity:
         cos_p = np.maximum(np.einsum("pc,psc->ps", n, w), 0.0)
         cos_x = np.maximum(-np.einsum("psc,psc->ps", nd.normal[ids[k]], w), 0.0)
         weight = mis_share(cos_p, cos_x, density[hot][k], r, rays, samples)
-        seen = np.flatnonzero(weight.ravel() > 0)
-        dist, _ = caster.first_hit(np.repeat(p, samples, axis=0)[seen], w.reshape(-1, 3)[seen])
-        weight.ravel()[seen] *= dist >= r.ravel()[seen] * (1 - 1e-6) - 10 * caster.epsilon
+        shown = np.flatnonzero(weight.ravel() > 0)
+        dist, _ = caster.first_hit(np.repeat(p, samples, axis=0)[shown], w.reshape(-1, 3)[shown])
+        weight.ravel()[shown] *= dist >= r.ravel()[shown] * (1 - 1e-6) - 10 * caster.epsilon
         lam = barycentric(x.reshape(-1, 3), nd.tri[ids[k]].reshape(-1, 3, 3))
-        light = reflected[hot][k] * self._shape(hot[k].ravel(), lam, flat).reshape(*k.shape, 3)
-        return np.einsum("ps,psc->pc", weight, light)
+        each = weight[..., None] * seen.light[hot][k] * self._shape(hot[k].ravel(), lam, seen.flat).reshape(*k.shape, 3)
+        return each.sum(axis=1), samples * each.var(axis=1)
 
     def _result_mesh(self):
         """The shown leaves cut at their T-vertices (``conforming``; a leaf with a T-vertex on
