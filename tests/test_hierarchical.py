@@ -665,6 +665,35 @@ def test_an_adaptive_final_gather_trades_vertices_for_area(monkeypatch):
     assert len(sides) == 1 and abs((sides[0] ** 2).mean() + solve.GATHER_PILOT - 256) < 5
 
 
+def test_gather_ray_light_compiled_equals_numpy_form(monkeypatch):
+    """``ray_light`` compiled and in numpy's form give the same light at every corner (to
+    1e-9), in a closed room whose two-sided lamp 10 cm under the ceiling makes the ceiling
+    over it hot (the rays' balance-heuristic shares) and whose back the rays from the
+    ceiling reach through its twin (``leaf_at``)."""
+    from radtr_addon import compiled
+    from radtr_addon.hierarchical import solve
+
+    box = closed_box((0, 0, 0), (4, 4, 2.5), inward=True)
+    room = [q for a, u, v in box for q in tiled(a, u, v, 2)]
+    up = [[(1.7, 1.7, 2.4), (2.3, 1.7, 2.4), (2.3, 2.3, 2.4), (1.7, 2.3, 2.4)]]
+    down = [[(1.7, 1.7, 2.4), (1.7, 2.3, 2.4), (2.3, 2.3, 2.4), (2.3, 1.7, 2.4)]]
+    hr = HierarchicalRadiosity(build([(room, 0.7, 0.0), (down, 0.5, 10.0), (up, 0.5, 10.0)]),
+                               HierarchicalSettings(epsilon=0.3, max_level=6, gather_rays=64))
+    hr.run()
+    glow = (hr.B - hr.scene.emission[hr.nodes.root[hr.leaf_ids]]).mean(axis=1)
+    assert (glow > solve.HOT_FACTOR * np.average(glow, weights=hr.nodes.area[hr.leaf_ids])).sum() > 10
+    twins, leaf_at = [], hr.leaf_at
+    monkeypatch.setattr(hr, "leaf_at", lambda t, bary: twins.append(len(t)) or leaf_at(t, bary))
+    real = compiled.kernel
+    corners = []
+    for numpy_form in (False, True):
+        monkeypatch.setattr(compiled, "kernel", lambda name: None if numpy_form and name == "ray_light" else real(name))
+        hr._memo.pop(("corners", 64), None)
+        corners.append(hr.result(gather=64).corner_B)
+    assert real("ray_light") is not None and sum(twins) > 1000
+    np.testing.assert_allclose(corners[0], corners[1], rtol=1e-9, atol=1e-12)
+
+
 def test_a_box_resting_in_a_furnace_gathers_the_furnace_at_its_foot():
     """A closed room and a box resting on its floor, E = 0.1 and rho = 0.9 everywhere: every
     point seen is at B = E / (1 - rho) = 1. The final gather at the corners of the box's

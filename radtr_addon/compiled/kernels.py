@@ -295,6 +295,65 @@ def clear_rays(origins, targets, origin_normals, target_normals, eps):
     return origin, direction, length
 
 
+@njit(parallel=True, cache=True)
+def _ray_light(row, x, dirs, dist, tri, H6, light, flat, hot, density, normal, point_normal, rays, shadow, inset,
+               mean, shape_max, out):
+    """out[k]: the light gather ray k takes from leaf row[k] at x[k] (see ``ray_light``)."""
+    for k in prange(len(row)):
+        out[k, 0] = out[k, 1] = out[k, 2] = 0.0
+        r = row[k]
+        if r < 0:
+            continue
+        a0, a1, a2 = tri[r, 0, 0], tri[r, 0, 1], tri[r, 0, 2]
+        e0, e1, e2 = tri[r, 1, 0] - a0, tri[r, 1, 1] - a1, tri[r, 1, 2] - a2
+        f0, f1, f2 = tri[r, 2, 0] - a0, tri[r, 2, 1] - a1, tri[r, 2, 2] - a2
+        g0, g1, g2 = x[k, 0] - a0, x[k, 1] - a1, x[k, 2] - a2
+        d00, d01, d11 = e0 * e0 + e1 * e1 + e2 * e2, e0 * f0 + e1 * f1 + e2 * f2, f0 * f0 + f1 * f1 + f2 * f2
+        d20, d21 = g0 * e0 + g1 * e1 + g2 * e2, g0 * f0 + g1 * f1 + g2 * f2
+        den = d00 * d11 - d01 * d01
+        if den == 0:
+            den = 1e-300
+        v = (d11 * d20 - d01 * d21) / den
+        w = (d00 * d21 - d01 * d20) / den
+        q = 1 - inset
+        l1, l2, l3 = (1 - v - w - inset / 3) / q, (v - inset / 3) / q, (w - inset / 3) / q
+        b0, b1, b2 = l1 * (2 * l1 - 1), l2 * (2 * l2 - 1), l3 * (2 * l3 - 1)
+        b3, b4, b5 = 4 * l2 * l3, 4 * l3 * l1, 4 * l1 * l2
+        share = 1.0
+        if shadow > 0 and hot[r]:
+            p = k // rays
+            cos_p = dirs[k, 0] * point_normal[p, 0] + dirs[k, 1] * point_normal[p, 1] + dirs[k, 2] * point_normal[p, 2]
+            cos_x = abs(dirs[k, 0] * normal[r, 0] + dirs[k, 1] * normal[r, 1] + dirs[k, 2] * normal[r, 2])
+            g = cos_p * cos_x
+            share = rays * g / max(rays * g + np.pi * shadow * density[r] * dist[k] ** 2, 1e-300)
+        for c in range(3):
+            s = 1.0
+            if not flat[r]:
+                m = (mean[0] * H6[r, 0, c] + mean[1] * H6[r, 1, c] + mean[2] * H6[r, 2, c] + mean[3] * H6[r, 3, c]
+                     + mean[4] * H6[r, 4, c] + mean[5] * H6[r, 5, c])
+                if m > 0:
+                    at = (b0 * H6[r, 0, c] + b1 * H6[r, 1, c] + b2 * H6[r, 2, c] + b3 * H6[r, 3, c]
+                          + b4 * H6[r, 4, c] + b5 * H6[r, 5, c])
+                    s = min(max(at / max(m, 1e-300), 0.0), shape_max)
+            out[k, c] = light[r, c] * s * share
+
+
+def ray_light(row, x, dirs, dist, tri, H6, light, flat, hot, density, normal, point_normal, rays, shadow, inset,
+              mean, shape_max):
+    """``hierarchical.solve.ray_light``: the light (k, 3) each final-gather ray takes from the
+    leaf ``row`` it hits (-1: none) at ``x``: the leaf's ``light`` times its quadratic ``H6``
+    at x over the quadratic's mean (``quadratic.basis`` of the triangle inset by ``inset``,
+    clamped to [0, shape_max]; 1 where ``flat`` or the mean is not positive), and of a
+    ``hot`` leaf the balance-heuristic share against ``shadow`` shadow rays (``mis_share``)."""
+    row = _ints(row)
+    out = np.empty((len(row), 3))
+    _ray_light(row, _reals(x), _reals(dirs), _reals(dist), _reals(tri), _reals(H6), _reals(light),
+               np.ascontiguousarray(flat, np.bool_), np.ascontiguousarray(hot, np.bool_), _reals(density),
+               _reals(normal), _reals(point_normal), int(rays), int(shadow), float(inset), _reals(mean),
+               float(shape_max), out)
+    return out
+
+
 def _ints(a):
     """Contiguous int64, the one type the kernels are built for (no rebuild at a caller's int32)."""
     return np.ascontiguousarray(a, np.int64)
@@ -321,6 +380,10 @@ SMOKE = {
                        np.array([0]),
                        np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0.0, 0, 1], [0, 1, 1], [1, 0, 1]]]),
                        np.array([[0.0, 0, 1], [0, 0, -1]]), np.zeros((1, 3, 3)), np.eye(3)[:1], 1e-9),
+    "ray_light": lambda: (np.array([0, -1]), np.full((2, 3), 0.25), np.array([[0.0, 0, -1], [0, 0, 1]]), np.ones(2),
+                          np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]), np.ones((1, 6, 3)), np.ones((1, 3)),
+                          np.array([False]), np.array([True]), np.ones(1), np.array([[0.0, 0, 1]]),
+                          np.array([[0.0, 0, 1]]), 2, 1, 0.05, np.full(6, 1 / 6), 4.0),
     "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
                               np.ones(1), np.eye(3)[:1], True),
 }

@@ -50,7 +50,7 @@ MAP_BATCH = 1_000_000
 #: box at Quality 0.1 the ceiling's area mean was +5.2% at 10%, +2.7% at 3%, +1.8% at 1%; the
 #: furnished room's box sides within 2 cm of the floor 7-16% RMS at 10%, 7-17% at 3%.
 CORNER_INSET = 0.03
-#: Most a gather ray's light may stand over its leaf's mean by the leaf's quadratic (``_shape``).
+#: Most a gather ray's light may stand over its leaf's mean by the leaf's quadratic (``light_shape``).
 SHAPE_MAX = 4.0
 #: Cosine rays per leaf that ``_open_light`` casts on a floor a box rests on (4 a point).
 CONTACT_RAYS = 64
@@ -377,7 +377,7 @@ class GatherTargets:
     """What a final gather's rays take their light from: the leaves (``caster``, by row of
     ``leaf_ids``), the reflected ``light`` each sends (``_open_light``), which are ``hot``,
     at what ``density`` per unit area the shadow rays draw them, which are ``flat``
-    (``_shape``), and each input triangle's two-sided ``twin``."""
+    (``light_shape``), and each input triangle's two-sided ``twin``."""
 
     caster: object
     light: np.ndarray
@@ -385,6 +385,45 @@ class GatherTargets:
     density: np.ndarray
     twin: np.ndarray
     flat: np.ndarray
+    tri: np.ndarray        # (leaves, 3, 3) corners
+    normal: np.ndarray     # (leaves, 3)
+    H6: np.ndarray         # (leaves, 6, 3) irradiance quadratics (``light_shape``)
+
+
+def ray_light(seen: GatherTargets, row: np.ndarray, x: np.ndarray, dirs: np.ndarray, dist: np.ndarray,
+              normals: np.ndarray, rays: int, shadow: int) -> np.ndarray:
+    """The light (k, 3) each of k final-gather rays takes (``_gather_batch``): the ray from
+    point k // ``rays`` (facing ``normals``) along ``dirs`` hits leaf ``row`` (-1: none) at
+    ``x``, ``dist`` away; it takes ``seen.light`` there (``light_shape``), and of a hot leaf its
+    balance-heuristic share against ``shadow`` shadow rays (``mis_share``). Compiled where
+    numba builds (``compiled.kernels.ray_light``; the numpy temporaries of barycentric
+    coordinates and quadratics were 40% of the Cornell box's gather)."""
+    kernel = compiled.kernel("ray_light")
+    if kernel is not None:
+        return kernel(row, x, dirs, dist, seen.tri, seen.H6, seen.light, seen.flat, seen.hot, seen.density,
+                      seen.normal, normals, rays, shadow, quadratic.INSET, quadratic.MEAN, SHAPE_MAX)
+    got = np.zeros((len(row), 3))
+    h = np.flatnonzero(row >= 0)
+    r = row[h]
+    got[h] = seen.light[r] * light_shape(seen.H6[r], barycentric(x[h], seen.tri[r]), seen.flat[r])
+    if shadow:
+        k = h[seen.hot[r]]
+        cos_p = np.einsum("kc,kc->k", dirs[k], normals[k // rays])
+        cos_x = np.abs(np.einsum("kc,kc->k", dirs[k], seen.normal[row[k]]))
+        got[k] *= rays * mis_share(cos_p, cos_x, seen.density[row[k]], dist[k], rays, shadow)[:, None]
+    return got
+
+
+def light_shape(H6: np.ndarray, lam: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """(m, 3) how the reflected light of leaves with irradiance quadratics ``H6`` (m, 6, 3) at
+    barycentric ``lam`` in them stands to their mean: the quadratic there over its mean,
+    clamped to [0, ``SHAPE_MAX``]; 1 where ``flat`` (a floor a box rests on, whose quadratic
+    counts the dark footprint: its open light is made apart, ``_open_light``)."""
+    at = np.einsum("mi,mic->mc", quadratic.basis(lam), H6)
+    mean = np.einsum("i,mic->mc", quadratic.MEAN, H6)
+    out = np.clip(at / np.maximum(mean, 1e-300), 0.0, SHAPE_MAX)
+    out[(mean <= 0) | flat[:, None]] = 1.0
+    return out
 
 
 class HierarchicalRadiosity:
@@ -991,7 +1030,7 @@ class HierarchicalRadiosity:
         returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex on average
         (each vertex's count rounded to a square grid, ``grid_side``; ``_corner_points``), each
         taking the radiosity less emission of the leaf whose front it hits where it hits it
-        (``_shape``: a point on a ceiling by a wall sees the wall's dark top strip at close
+        (``shape``: a point on a ceiling by a wall sees the wall's dark top strip at close
         range, and with the wall leaf's mean the Cornell box's ceiling came out +7.5%; the
         hidden backs of two-sided lamps too; a leaf on a floor a box rests on, its open
         part's: ``_open_light``); the hot leaves' light by shadow rays to them as well
@@ -1016,7 +1055,7 @@ class HierarchicalRadiosity:
         hot = glow > HOT_FACTOR * np.average(glow, weights=nd.area[leaves])
         density = np.where(hot, glow, 0.0) / max(float((glow * nd.area[leaves])[hot].sum()), 1e-300)
         seen = GatherTargets(caster, self._open_light(caster, reflected), hot, density, self.contacts.twin,
-                             self.contacts.covered[nd.root[leaves]])
+                             self.contacts.covered[nd.root[leaves]], nd.tri[leaves], nd.normal[leaves], self.H6)
         p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
         if rays < GATHER_ADAPTIVE:
             H, _ = yield from self._gather_pass(seen, p, n, np.full(len(p), grid_side(rays)), 3)
@@ -1069,21 +1108,11 @@ class HierarchicalRadiosity:
         row[behind] = -1
         other = seen.twin[nd.root[leaves[hit[behind]]]]      # the back of a two-sided face: its twin's leaf
         behind, other = behind[other >= 0], other[other >= 0]
-        x = origins + dist[:, None] * dirs
-        lam = np.zeros((len(row), 3))
-        front = np.flatnonzero(row >= 0)
-        lam[front] = barycentric(x[front], nd.tri[leaves[row[front]]])
         if len(behind):
-            leaf_hit, lam[behind] = self.leaf_at(other, barycentric(x[behind], sc.vertices[sc.triangles[other]]))
+            leaf_hit, _ = self.leaf_at(other, barycentric(origins[behind] + dist[behind, None] * dirs[behind],
+                                                          sc.vertices[sc.triangles[other]]))
             row[behind] = np.searchsorted(leaves, leaf_hit)
-        got = np.where(row[:, None] >= 0, seen.light[np.maximum(row, 0)], 0.0)
-        h = np.flatnonzero(row >= 0)
-        got[h] *= self._shape(row[h], lam[h], seen.flat)
-        if shadow:                                           # a hot leaf hit: its share by MIS
-            h = np.flatnonzero((row >= 0) & seen.hot[np.maximum(row, 0)])
-            cos_p = np.einsum("kc,kc->k", dirs[h], n[h // rays])
-            cos_x = np.abs(np.einsum("kc,kc->k", dirs[h], nd.normal[leaves[row[h]]]))
-            got[h] *= rays * mis_share(cos_p, cos_x, seen.density[row[h]], dist[h], rays, shadow)[:, None]
+        got = ray_light(seen, row, origins + dist[:, None] * dirs, dirs, dist, n, rays, shadow)
         got = got.reshape(len(p), rays, 3)
         H = got.mean(axis=1)
         if m % 2 == 0:
@@ -1095,18 +1124,6 @@ class HierarchicalRadiosity:
             more, more_var = self._hot_light(seen, p, n, rays, shadow, rng)
             H, var = H + more, var + more_var
         return H, var
-
-    def _shape(self, rows: np.ndarray, lam: np.ndarray, flat: np.ndarray) -> np.ndarray:
-        """(m, 3) how the reflected light of leaves ``rows`` (of ``leaf_ids``) at barycentric
-        ``lam`` in them stands to their mean: their irradiance quadratic there over its mean,
-        clamped to [0, ``SHAPE_MAX``]; 1 where ``flat`` (a floor a box rests on, whose
-        quadratic counts the dark footprint: its open light is made apart)."""
-        H6 = self.H6[rows]
-        at = np.einsum("mi,mic->mc", quadratic.basis(lam), H6)
-        mean = np.einsum("i,mic->mc", quadratic.MEAN, H6)
-        out = np.clip(at / np.maximum(mean, 1e-300), 0.0, SHAPE_MAX)
-        out[(mean <= 0) | flat[rows][:, None]] = 1.0
-        return out
 
     def _open_light(self, caster, reflected: np.ndarray) -> np.ndarray:
         """The reflected light (leaves, 3) a gather ray takes from each leaf it hits: ``reflected``
@@ -1178,7 +1195,7 @@ class HierarchicalRadiosity:
 
     def _hot_light(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng):
         """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (``seen.hot``)
-        sending ``seen.light`` (shaped as the cosine rays take it: ``_shape``), by ``samples``
+        sending ``seen.light`` (shaped as the cosine rays take it: ``shape``), by ``samples``
         shadow rays per point to points on them drawn by power (leaf by its B x area,
         stratified, then uniform on it: ``seen.density`` per unit area), weighed against the
         ``rays`` cosine rays that may hit them too (``mis_share``); and its variance (len(p), 3)
@@ -1201,7 +1218,9 @@ class HierarchicalRadiosity:
         dist, _ = caster.first_hit(np.repeat(p, samples, axis=0)[shown], w.reshape(-1, 3)[shown])
         weight.ravel()[shown] *= dist >= r.ravel()[shown] * (1 - 1e-6) - 10 * caster.epsilon
         lam = barycentric(x.reshape(-1, 3), nd.tri[ids[k]].reshape(-1, 3, 3))
-        each = weight[..., None] * seen.light[hot][k] * self._shape(hot[k].ravel(), lam, seen.flat).reshape(*k.shape, 3)
+        rows = hot[k].ravel()
+        shaped = light_shape(seen.H6[rows], lam, seen.flat[rows]).reshape(*k.shape, 3)
+        each = weight[..., None] * seen.light[hot][k] * shaped
         return each.sum(axis=1), samples * each.var(axis=1)
 
     def _result_mesh(self):
