@@ -352,7 +352,8 @@ def mis_share(cos_p: np.ndarray, cos_x: np.ndarray, density: np.ndarray, r: np.n
 def gather_sides(rays: int, noise: np.ndarray, area: np.ndarray) -> np.ndarray:
     """Grid sides (k,) of the final gather's cosine rays at k points, ``rays`` a point on
     average, each point's count in proportion to (sqrt(area) x noise)^(1/3) within
-    ``GATHER_SPREAD`` x ``rays``: ``noise`` the variance of a pilot gather's estimate there,
+    ``GATHER_SPREAD`` x ``rays`` (fewer on average where nearly every point has no noise and the
+    most cannot make up the mean): ``noise`` the variance of a pilot gather's estimate there,
     ``area`` the point's share of the result mesh. A stratified gather's variance falls about
     as rays^-2 (on the Cornell box from 64 to 256 rays 14x, median of its points), and the
     counts n that make sum w v0 (n0 / n)^2 least for a given sum n go as (w v0)^(1/3). Weights
@@ -1030,7 +1031,7 @@ class HierarchicalRadiosity:
         returns H (k x 3 corners, 3). ``rays`` stratified cosine rays per vertex on average
         (each vertex's count rounded to a square grid, ``grid_side``; ``_corner_points``), each
         taking the radiosity less emission of the leaf whose front it hits where it hits it
-        (``shape``: a point on a ceiling by a wall sees the wall's dark top strip at close
+        (``light_shape``: a point on a ceiling by a wall sees the wall's dark top strip at close
         range, and with the wall leaf's mean the Cornell box's ceiling came out +7.5%; the
         hidden backs of two-sided lamps too; a leaf on a floor a box rests on, its open
         part's: ``_open_light``); the hot leaves' light by shadow rays to them as well
@@ -1119,7 +1120,7 @@ class HierarchicalRadiosity:
             pairs = got.reshape(len(p), rays // 2, 2, 3)
             var = ((pairs[:, :, 0] - pairs[:, :, 1]) ** 2).sum(axis=1) / rays ** 2
         else:
-            var = got.var(axis=1) / rays
+            var = got.var(axis=1, ddof=1 if rays > 1 else 0) / rays
         if shadow:
             more, more_var = self._hot_light(seen, p, n, rays, shadow, rng)
             H, var = H + more, var + more_var
@@ -1195,7 +1196,7 @@ class HierarchicalRadiosity:
 
     def _hot_light(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng):
         """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (``seen.hot``)
-        sending ``seen.light`` (shaped as the cosine rays take it: ``shape``), by ``samples``
+        sending ``seen.light`` (shaped as the cosine rays take it: ``light_shape``), by ``samples``
         shadow rays per point to points on them drawn by power (leaf by its B x area,
         stratified, then uniform on it: ``seen.density`` per unit area), weighed against the
         ``rays`` cosine rays that may hit them too (``mis_share``); and its variance (len(p), 3)
@@ -1221,7 +1222,7 @@ class HierarchicalRadiosity:
         rows = hot[k].ravel()
         shaped = light_shape(seen.H6[rows], lam, seen.flat[rows]).reshape(*k.shape, 3)
         each = weight[..., None] * seen.light[hot][k] * shaped
-        return each.sum(axis=1), samples * each.var(axis=1)
+        return each.sum(axis=1), samples * each.var(axis=1, ddof=1 if samples > 1 else 0)
 
     def _result_mesh(self):
         """The shown leaves cut at their T-vertices (``conforming``; a leaf with a T-vertex on
