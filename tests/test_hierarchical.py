@@ -633,7 +633,7 @@ def test_an_adaptive_final_gather_trades_vertices_for_area(monkeypatch):
     """A room lit by a lamp under its ceiling, a box on its floor, gathered at 256 rays a
     vertex: an even share, and a pilot of 16 rays then the rest by noise and area
     (``gather_sides``), against an even gather of 2,048 rays. The adaptive one's error by area
-    is under 0.9x the even one's (0.80x), and per vertex at most 1.3x it (1.2x: the many small
+    is under 0.9x the even one's (0.76x), and per vertex at most 1.3x it (1.2x: the many small
     vertices along the box's foot get fewer rays); its rays a vertex average to 256."""
     from radtr_addon.hierarchical import solve
 
