@@ -334,7 +334,7 @@ def _ray_light(row, x, dirs, dist, tri, H6, light, flat, hot, density, normal, p
                 if m > 0:
                     at = (b0 * H6[r, 0, c] + b1 * H6[r, 1, c] + b2 * H6[r, 2, c] + b3 * H6[r, 3, c]
                           + b4 * H6[r, 4, c] + b5 * H6[r, 5, c])
-                    s = min(max(at / max(m, 1e-300), 0.0), shape_max)
+                    s = min(max(at / m, 0.0), shape_max)
             out[k, c] = light[r, c] * s * share
 
 

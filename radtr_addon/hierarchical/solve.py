@@ -27,7 +27,7 @@ import numpy as np
 from .. import compiled
 from ..errors import Cancelled, SceneError
 from ..formfactors.closed_form import polygon_factor
-from ..scene import PatchScene
+from ..scene import PatchScene, triangle_geometry
 from ..solvers.result import SolveResult
 from ..textures import barycentric
 from . import quadratic
@@ -1051,7 +1051,7 @@ class HierarchicalRadiosity:
 
         nd, sc = self.nodes, self.scene
         leaves = self.leaf_ids
-        _, leaf, _, tris, P, T = self._result_mesh()
+        _, leaf, verts, tris, P, T = self._result_mesh()
         caster = EmbreeRays(PatchScene(nd.all_vertices(), nd.vids[leaves], nd.rho[leaves], nd.E[leaves],
                                        sc.object_index[nd.root[leaves]], sc.material_index[nd.root[leaves]]), 1)
         reflected = self.B - sc.emission[nd.root[leaves]]
@@ -1069,13 +1069,12 @@ class HierarchicalRadiosity:
                                    0.0, share)
         rho = np.zeros((len(p), 3))
         rho[back] = np.repeat(nd.rho[leaf], 3, axis=0)
-        area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1) / 6
-        area = np.bincount(back, weights=np.repeat(area, 3), minlength=len(p))
+        area = np.bincount(back, weights=np.repeat(triangle_geometry(verts, tris)[1] / 3, 3), minlength=len(p))
         sides = gather_sides(rays - GATHER_PILOT, (rho ** 2 * var).sum(axis=1), area)
         H, _ = yield from scaled(self._gather_pass(seen, p, n, sides, 3), share, 1 - share)
         return H[back].reshape(len(leaf), 3, 3)
 
-    def _gather_pass(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, sides: np.ndarray, tag: int):
+    def _gather_pass(self, seen: GatherTargets, p: np.ndarray, n: np.ndarray, sides: np.ndarray, tag: int):
         """Gathered light (k, 3) at points ``p`` facing ``n``, by ``sides``^2 stratified cosine
         rays each (``_gather_batch``), and the variance of each point's estimate (k, 3); yields
         the fraction of the rays cast. ``tag`` keeps one pass's random draws apart from another's."""
@@ -1092,7 +1091,7 @@ class HierarchicalRadiosity:
                 yield done / total
         return H, var
 
-    def _gather_batch(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, m: int, rng):
+    def _gather_batch(self, seen: GatherTargets, p: np.ndarray, n: np.ndarray, m: int, rng):
         """The light (k, 3) an m x m grid of cosine rays (and the hot leaves' shadow rays)
         gathers at each of points ``p`` facing ``n``, and the variance of each estimate (k, 3):
         by pairs of cells next to each other in azimuth (the strata collapsed in twos, which
@@ -1112,11 +1111,11 @@ class HierarchicalRadiosity:
         row[behind] = -1
         other = seen.twin[nd.root[leaves[hit[behind]]]]      # the back of a two-sided face: its twin's leaf
         behind, other = behind[other >= 0], other[other >= 0]
+        x = origins + dist[:, None] * dirs
         if len(behind):
-            leaf_hit, _ = self.leaf_at(other, barycentric(origins[behind] + dist[behind, None] * dirs[behind],
-                                                          sc.vertices[sc.triangles[other]]))
+            leaf_hit, _ = self.leaf_at(other, barycentric(x[behind], sc.vertices[sc.triangles[other]]))
             row[behind] = np.searchsorted(leaves, leaf_hit)
-        got = ray_light(seen, row, origins + dist[:, None] * dirs, dirs, dist, n, rays, shadow)
+        got = ray_light(seen, row, x, dirs, dist, n, rays, shadow)
         got = got.reshape(len(p), rays, 3)
         H = got.mean(axis=1)
         if m % 2 == 0:
@@ -1197,7 +1196,7 @@ class HierarchicalRadiosity:
             found |= fill
         return values, found
 
-    def _hot_light(self, seen: "GatherTargets", p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng):
+    def _hot_light(self, seen: GatherTargets, p: np.ndarray, n: np.ndarray, rays: int, samples: int, rng):
         """Irradiance (len(p), 3) at points ``p`` facing ``n`` from the hot leaves (``seen.hot``)
         sending ``seen.light`` (shaped as the cosine rays take it: ``light_shape``), by ``samples``
         shadow rays per point to points on them drawn by power (leaf by its B x area,
