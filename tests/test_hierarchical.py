@@ -1059,30 +1059,39 @@ def tiled_room():
     return run(build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)]), quality=0.3)[0]
 
 
-def test_member_shares_compiled_equal_numpy_form(monkeypatch, tiled_room):
-    """The (link, member) entries of the cluster maps, compiled where numba builds, equal
-    numpy's form on the links of a tiled room with boxes: each member's share A max(0, n.w)
-    sent, max(0, -n.w) taken; a cluster's sent shares add up to no more than its area, and
-    to some of it for nine in ten links (a source mostly shows its receiver something)."""
+def test_member_entries_compiled_equal_numpy_form(monkeypatch, tiled_room):
+    """The (link, member) entries of the cluster maps, compiled where numba builds (shares,
+    closed forms and the shadow rays that share out a partly visible link), equal numpy's
+    form on the links of a tiled room with boxes: each member's share A max(0, n.w) sent,
+    max(0, -n.w) taken, or its closed form where the other end is an element; a cluster's
+    sent shares to clusters add up to no more than its area, and to some of it for nine in
+    ten links (a source mostly shows its receiver something)."""
     from radtr_addon import compiled
-    from radtr_addon.hierarchical.solve import EXACT_CLUSTER, _member_shares
+    from radtr_addon.hierarchical.solve import EXACT_CLUSTER, _member_entries, _member_shares
 
-    if compiled.kernel("member_shares") is None:
-        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    if compiled.kernel("member_shares") is None or compiled.kernel("member_rays") is None:
+        pytest.skip("numba cannot build the kernels here (the warning says why)")
     hr = tiled_room
     nd, ev, L = hr.nodes, hr.evaluator, hr.links
-    links = np.flatnonzero(nd.cluster[L.src] & (ev.size(L.src) <= EXACT_CLUSTER))
-    assert len(links) > 100
-    lo, count = ev.span[L.src[links], 0], ev.size(L.src[links])
     w = nd.center[L.rcv] - nd.center[L.src]
     w /= np.linalg.norm(w, axis=1, keepdims=True)
+    undo = np.random.default_rng(1).uniform(0.5, 2.0, len(L))
     for sending in (True, False):
-        got = _member_shares(ev, lo, count, links, w, sending)
+        ends, other = (L.src, L.rcv) if sending else (L.rcv, L.src)
+        small = nd.cluster[ends] & (ev.size(ends) <= EXACT_CLUSTER)
+        assert small.sum() > 100 and (small & ~nd.cluster[other]).sum() > 100
+        assert (small & (L.vis > 0) & (L.vis < 1)).sum() > 10          # some entries cast rays
+        got = _member_entries(ev, L, w, sending, undo)
         with monkeypatch.context() as m:
             m.setattr(compiled, "kernel", lambda name: None)
-            ref = _member_shares(ev, lo, count, links, w, sending)
-        assert all(np.allclose(a, b, rtol=1e-12, atol=0) for a, b in zip(got, ref))
-    pos, _, share = _member_shares(ev, lo, count, links, w, True)
+            ref = _member_entries(ev, L, w, sending, undo)
+        assert np.array_equal(got[0], ref[0])
+        assert np.array_equal(got[1][0], ref[1][0]) and np.array_equal(got[1][1], ref[1][1])
+        # the closed forms of members seen at a grazing angle differ in their last digits
+        assert np.allclose(got[1][2], ref[1][2], rtol=1e-9, atol=1e-12 * ref[1][2].max())
+    links = np.flatnonzero(nd.cluster[L.src] & nd.cluster[L.rcv] & (ev.size(L.src) <= EXACT_CLUSTER))
+    lo, count = ev.span[L.src[links], 0], ev.size(L.src[links])
+    pos, _, share = _member_shares(ev, lo, count, links, w, True, L.rcv, undo)
     shown = np.bincount(pos, weights=share, minlength=len(links))
     assert np.all(shown <= nd.area[L.src[links]] * (1 + 1e-12)) and (shown > 0).mean() > 0.9
 

@@ -1,9 +1,9 @@
 """``bench adaptive``: uniform patches against hierarchical radiosity, both against Cycles.
 
-For the bundled ``cornell_box`` and ``furnished_room`` (the ``atrium`` is left out: its
-hierarchical solve takes about 10 minutes at Quality 0.1, and its bakes longer) and each
-configuration (uniform Embree patches with Jacobi at two patch counts; hierarchical at
-several Quality values, each with its default final gather, ``settings.AUTO_GATHER_RAYS``):
+For the bundled ``cornell_box``, ``furnished_room`` and, without ``--quick``, the large
+``atrium`` (``LARGE``: hierarchical only, at one Quality) and each configuration (uniform
+Embree patches with Jacobi at two patch counts; hierarchical at several Quality values, each
+with its default final gather, ``settings.AUTO_GATHER_RAYS``):
 a solve as a user runs it (``pipeline.solve``, result meshes written), then Cycles baked at
 the vertices of those result meshes (emitters left out) as the reference, each object at
 the samples its mean needs (``reference_bake``; at least ``REFERENCE_SPP``, 256 with
@@ -37,6 +37,11 @@ REFERENCE_SPP = 1024
 CURVE_SPP = (16, 64, 256)
 QUALITIES = (0.1, 0.03, 0.01)
 UNIFORM_PATCHES = (2000, 8000)
+#: The large scene: its 65,474 input triangles are a patch each at least, so no uniform
+#: solve (its matrix: 4.3e9 form factors); one Quality (at 1.0 and 0.3 its solve is much the
+#: same, its time its links: README); its reference at fewer samples, their noise taken out
+#: of the errors all the same (its 102,780 result vertices take 27 s a 16-sample bake).
+LARGE = {"scene": "atrium", "qualities": (1.0,), "reference_spp": 64}
 
 
 class ResultVertices:
@@ -129,6 +134,8 @@ def configurations(quick: bool, scene: str) -> list[tuple[str, dict]]:
     qualities = QUALITIES[:1 if scene == "furnished_room" else 2] if quick else QUALITIES
     uniform = [(f"uniform {n:,}", {"solver": "jacobi", "method": "embree", "rays": 1024, "max_area": 0.0,
                                    "tolerance": 1e-4, "patches": n}) for n in UNIFORM_PATCHES[:1 if quick else 2]]
+    if scene == LARGE["scene"]:
+        qualities, uniform = LARGE["qualities"], []
     hier = [(f"hierarchical {q:g}", {"solver": "hierarchical", "quality": q, "tolerance": 1e-4})
             for q in qualities]
     return uniform + hier
@@ -157,7 +164,7 @@ def solve_scene(scene: str, label: str, options: dict):
 
 def scene_rows(scene: str, quick: bool) -> tuple[list[dict], list[dict]]:
     rows, curves = [], []
-    spp_ref = 256 if quick else REFERENCE_SPP
+    spp_ref = LARGE["reference_spp"] if scene == LARGE["scene"] else 256 if quick else REFERENCE_SPP
     curve_spp = CURVE_SPP[:2]
     for label, options in configurations(quick, scene):
         job, seconds = solve_scene(scene, label, options)
@@ -224,7 +231,7 @@ def plot(curves: list[dict], path: Path):
 
 
 def run(quick: bool = False, out_dir: str = "out") -> dict[str, list[dict]]:
-    scenes = ("cornell_box", "furnished_room")
+    scenes = ("cornell_box", "furnished_room") + (() if quick else (LARGE["scene"],))
     rows, curves = [], []
     for scene in scenes:
         r, c = scene_rows(scene, quick)

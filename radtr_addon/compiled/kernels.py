@@ -24,45 +24,46 @@ def _lambert(poly, k, x0, x1, x2, n0, n1, n2):
     return abs(total) / (2 * np.pi)
 
 
+@njit(cache=True)
+def _point_factor(t, x0, x1, x2, n0, n1, n2, poly, h):
+    """The form factor from x facing n to the front of triangle t (3, 3), clipped at x's
+    horizon (``poly`` (4, 3) and ``h`` (3,): scratch)."""
+    e0, e1, e2 = t[1, 0] - t[0, 0], t[1, 1] - t[0, 1], t[1, 2] - t[0, 2]
+    f0, f1, f2 = t[2, 0] - t[0, 0], t[2, 1] - t[0, 1], t[2, 2] - t[0, 2]
+    nt0, nt1, nt2 = e1 * f2 - e2 * f1, e2 * f0 - e0 * f2, e0 * f1 - e1 * f0
+    if (x0 - t[0, 0]) * nt0 + (x1 - t[0, 1]) * nt1 + (x2 - t[0, 2]) * nt2 <= 0:
+        return 0.0                                       # the triangle's back faces x
+    above = 0
+    for k in range(3):
+        h[k] = (t[k, 0] - x0) * n0 + (t[k, 1] - x1) * n1 + (t[k, 2] - x2) * n2
+        above += h[k] > 0
+    if above == 0:
+        return 0.0                                       # wholly below x's horizon
+    if above == 3:
+        return min(_lambert(t, 3, x0, x1, x2, n0, n1, n2), 1.0)
+    c = 0                                                # clip at the horizon
+    for k in range(3):
+        j = k + 1 if k < 2 else 0
+        if h[k] >= 0:
+            poly[c] = t[k]
+            c += 1
+        if (h[k] >= 0) != (h[j] >= 0):
+            s = h[k] / (h[k] - h[j])
+            for q in range(3):
+                poly[c, q] = t[k, q] + s * (t[j, q] - t[k, q])
+            c += 1
+    return min(_lambert(poly, c, x0, x1, x2, n0, n1, n2), 1.0)
+
+
 @njit(parallel=True, cache=True)
 def _polygon_factor(points, normals, tris, out):
     """out[m, p]: the form factor from points[m, p] facing normals[m] to the front of tris[m]."""
     L, P = out.shape
     for m in prange(L):
-        t = tris[m]
-        poly = np.empty((4, 3))
-        h = np.empty(3)
-        e0, e1, e2 = t[1, 0] - t[0, 0], t[1, 1] - t[0, 1], t[1, 2] - t[0, 2]
-        f0, f1, f2 = t[2, 0] - t[0, 0], t[2, 1] - t[0, 1], t[2, 2] - t[0, 2]
-        nt0, nt1, nt2 = e1 * f2 - e2 * f1, e2 * f0 - e0 * f2, e0 * f1 - e1 * f0
-        n0, n1, n2 = normals[m, 0], normals[m, 1], normals[m, 2]
+        poly, h = np.empty((4, 3)), np.empty(3)
         for p in range(P):
-            x0, x1, x2 = points[m, p, 0], points[m, p, 1], points[m, p, 2]
-            out[m, p] = 0.0
-            if (x0 - t[0, 0]) * nt0 + (x1 - t[0, 1]) * nt1 + (x2 - t[0, 2]) * nt2 <= 0:
-                continue                                 # the triangle's back faces x
-            above = 0
-            for k in range(3):
-                h[k] = (t[k, 0] - x0) * n0 + (t[k, 1] - x1) * n1 + (t[k, 2] - x2) * n2
-                above += h[k] > 0
-            if above == 0:
-                continue                                 # wholly below x's horizon
-            if above == 3:
-                F = _lambert(t, 3, x0, x1, x2, n0, n1, n2)
-            else:                                        # clip at the horizon
-                c = 0
-                for k in range(3):
-                    j = k + 1 if k < 2 else 0
-                    if h[k] >= 0:
-                        poly[c] = t[k]
-                        c += 1
-                    if (h[k] >= 0) != (h[j] >= 0):
-                        s = h[k] / (h[k] - h[j])
-                        for q in range(3):
-                            poly[c, q] = t[k, q] + s * (t[j, q] - t[k, q])
-                        c += 1
-                F = _lambert(poly, c, x0, x1, x2, n0, n1, n2)
-            out[m, p] = min(F, 1.0)
+            out[m, p] = _point_factor(tris[m], points[m, p, 0], points[m, p, 1], points[m, p, 2],
+                                      normals[m, 0], normals[m, 1], normals[m, 2], poly, h)
 
 
 def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) -> np.ndarray:
@@ -111,20 +112,37 @@ def points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corne
 
 
 @njit(parallel=True, cache=True)
-def _member_shares(lo, count, start, link, order, normals, areas, w, sending, pos, tri, share):
+def _member_shares(lo, count, start, link, order, normals, areas, w, sending, other, cluster, center, node_tri,
+                   node_normal, corners, centroids, eps, undo, pos, tri, share):
     for i in prange(len(lo)):
         j = link[i]
+        o = other[j]
+        poly, h = np.empty((4, 3)), np.empty(3)
         for k in range(count[i]):
             e, t = start[i] + k, order[lo[i] + k]
-            c = normals[t, 0] * w[j, 0] + normals[t, 1] * w[j, 1] + normals[t, 2] * w[j, 2]
             pos[e], tri[e] = i, t
-            share[e] = areas[t] * max(c, 0.0) if sending else max(-c, 0.0)
+            if cluster[o]:
+                c = normals[t, 0] * w[j, 0] + normals[t, 1] * w[j, 1] + normals[t, 2] * w[j, 2]
+                share[e] = areas[t] * max(c, 0.0) if sending else max(-c, 0.0)
+            elif sending:                                # from the element's centre to t
+                n0, n1, n2 = node_normal[o, 0], node_normal[o, 1], node_normal[o, 2]
+                share[e] = undo[j] * _point_factor(corners[t], center[o, 0] + eps * n0, center[o, 1] + eps * n1,
+                                                   center[o, 2] + eps * n2, n0, n1, n2, poly, h)
+            else:                                        # from t's centroid to the element
+                n0, n1, n2 = normals[t, 0], normals[t, 1], normals[t, 2]
+                share[e] = undo[j] * _point_factor(node_tri[o], centroids[t, 0] + eps * n0,
+                                                   centroids[t, 1] + eps * n1, centroids[t, 2] + eps * n2,
+                                                   n0, n1, n2, poly, h)
 
 
-def member_shares(lo, count, link, order, normals, areas, w, sending):
+def member_shares(lo, count, link, order, normals, areas, w, sending, other, cluster, center, node_tri, node_normal,
+                  corners, centroids, eps, undo):
     """``hierarchical.solve._member_shares``: per (link i, member t of its cluster end, the
     input triangles ``order[lo[i]:lo[i] + count[i]]``) the entry's link position, t, and t's
-    share of link ``link[i]``'s light along w: A max(0, n.w) sent or max(0, -n.w) taken."""
+    share of link ``link[i]``'s light along w: A max(0, n.w) sent or max(0, -n.w) taken
+    where the link's ``other`` end is a cluster; where it is an element, the closed form
+    (sending: from the element's centre, lifted ``eps``, to t; taking: from t's centroid to
+    the element) times the link's ``undo``."""
     if not len(lo) == len(count) == len(link):
         raise ValueError(f"{len(lo)} starts, {len(count)} counts and {len(link)} links")
     count = _ints(count)
@@ -132,8 +150,77 @@ def member_shares(lo, count, link, order, normals, areas, w, sending):
     n = int(count.sum())
     pos, tri, share = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
     _member_shares(_ints(lo), count, start, _ints(link), _ints(order), _reals(normals), _reals(areas), _reals(w),
-                   bool(sending), pos, tri, share)
+                   bool(sending), _ints(other), np.ascontiguousarray(cluster, np.bool_), _reals(center),
+                   _reals(node_tri), _reals(node_normal), _reals(corners), _reals(centroids), float(eps),
+                   _reals(undo), pos, tri, share)
     return pos, tri, share
+
+
+@njit(cache=True)
+def _splitmix(keys, count, out):
+    """``sampling.hashed_uniforms`` of one entry's integer ``keys`` into ``out[:count]``."""
+    gold = np.uint64(0x9E3779B97F4A7C15)
+    h = np.uint64(0)
+    for k in keys:
+        h = (h ^ np.uint64(k)) * gold
+    for i in range(count):
+        h = h + gold
+        z = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+        out[i] = np.float64(z >> np.uint64(11)) / 9007199254740992.0
+
+
+@njit(parallel=True, cache=True)
+def _member_rays(end, other, t, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, eps,
+                 faced, origin, direction, length):
+    for m in prange(len(t)):
+        u, keys = np.empty(5), np.empty(3, np.int64)
+        keys[0], keys[1], keys[2] = end[m], other[m], t[m]
+        _splitmix(keys, 5, u)
+        tt = t[m]
+        r, v = np.sqrt(u[0]), u[1]
+        a, na = corners[tt], normals[tt]
+        p = np.empty(3)
+        for c in range(3):
+            p[c] = a[0, c] + r * (a[1, c] - a[0, c] + v * (a[2, c] - a[1, c]))
+        e = other[m]
+        if cluster[e]:
+            lo, hi = span[e, 0], span[e, 1]
+            base = cum_area[lo - 1] if lo > 0 else 0.0
+            pick = base + u[2] * (cum_area[hi - 1] - base)
+            s = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
+            b, nb = corners[s], normals[s]
+        else:
+            b, nb = node_tri[e], node_normal[e]
+        r, v = np.sqrt(u[3]), u[4]
+        q = np.empty(3)
+        for c in range(3):
+            q[c] = b[0, c] + r * (b[1, c] - b[0, c] + v * (b[2, c] - b[1, c]))
+        d0, d1, d2 = q[0] - p[0], q[1] - p[1], q[2] - p[2]
+        faced[m] = (na[0] * d0 + na[1] * d1 + na[2] * d2 > 0) and (nb[0] * d0 + nb[1] * d1 + nb[2] * d2 < 0)
+        if faced[m]:
+            ray = _ray_between(p[0], p[1], p[2], q[0], q[1], q[2], na[0], na[1], na[2], nb[0], nb[1], nb[2], eps)
+            for c in range(3):
+                origin[m, c], direction[m, c] = ray[c], ray[3 + c]
+            length[m] = ray[6]
+
+
+def member_rays(end, other, t, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, eps):
+    """``hierarchical.solve._member_visibility``'s rays: per entry (input triangle t of the
+    cluster ``end``, the link's ``other`` end) a point on t and one on ``other`` (by area
+    over a cluster's members, ``points_on``) from ``sampling.hashed_uniforms`` of (end,
+    other, t), whether the two face each other, and where they do the ray of
+    ``EmbreeRays.clear_between`` (origins, directions (k, 3), lengths (k,))."""
+    if not len(end) == len(other) == len(t):
+        raise ValueError(f"{len(end)} ends, {len(other)} others and {len(t)} triangles")
+    k = len(t)
+    faced = np.empty(k, np.bool_)
+    origin, direction, length = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k)
+    _member_rays(_ints(end), _ints(other), _ints(t), np.ascontiguousarray(cluster, np.bool_), _ints(span),
+                 _reals(cum_area), _ints(order), _reals(node_tri), _reals(node_normal), _reals(corners),
+                 _reals(normals), float(eps), faced, origin, direction, length)
+    return faced, origin, direction, length
 
 
 @njit(cache=True)
@@ -385,5 +472,11 @@ SMOKE = {
                           np.array([False]), np.array([True]), np.ones(1), np.array([[0.0, 0, 1]]),
                           np.array([[0.0, 0, 1]]), 2, 1, 0.05, np.full(6, 1 / 6), 4.0),
     "member_shares": lambda: (np.array([0]), np.array([1]), np.array([0]), np.array([0]), np.eye(3)[:1],
-                              np.ones(1), np.eye(3)[:1], True),
+                              np.ones(1), np.eye(3)[:1], True, np.array([0]), np.array([False]), np.zeros((1, 3)),
+                              np.array([[[0.0, 0, 1], [1, 0, 1], [0, 1, 1]]]), np.array([[0.0, 0, 1]]),
+                              np.array([[[0.0, 0, 1], [1, 0, 1], [0, 1, 1]]]), np.zeros((1, 3)), 1e-6, np.ones(1)),
+    "member_rays": lambda: (np.array([1]), np.array([0]), np.array([0]), np.array([False, True]),
+                            np.array([[0, 1], [0, 1]]), np.array([0.5]), np.array([0]),
+                            np.array([[[0.0, 0, 1], [0, 1, 1], [1, 0, 1]]] * 2), np.array([[0.0, 0, -1]] * 2),
+                            np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]), np.array([[0.0, 0, 1]]), 1e-6),
 }

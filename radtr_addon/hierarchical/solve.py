@@ -201,7 +201,6 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
     element) times ``undo``, the link's kernel over its cosine. In batches of
     ``MAP_BATCH`` entries (a large scene has tens of millions)."""
     nodes, span = evaluator.nodes, evaluator.span
-    sc, eps = nodes.scene, evaluator.caster.epsilon
     ends, other = (L.src, L.rcv) if sending else (L.rcv, L.src)
     links = np.flatnonzero(nodes.cluster[ends])                 # clusters are the first nodes: in span
     lo, hi = span[ends[links]].T
@@ -211,17 +210,9 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
     first = 0
     while first < len(links):
         last = max(first + 1, int(np.searchsorted(np.cumsum(count[first:]), MAP_BATCH)) + first)
-        pos, t, v = _member_shares(evaluator, lo[first:last], count[first:last], links[first:last], w, sending)
+        pos, t, v = _member_shares(evaluator, lo[first:last], count[first:last], links[first:last], w, sending,
+                                   other, undo)
         j = links[first:last][pos]
-        el = np.flatnonzero(~nodes.cluster[other[j]])
-        if len(el):
-            e, te = other[j[el]], t[el]
-            if sending:
-                x, normal = nodes.center[e] + eps * nodes.normal[e], nodes.normal[e]
-                poly = evaluator.corners[te]
-            else:
-                x, normal, poly = evaluator.centroids[te] + eps * sc.normals[te], sc.normals[te], nodes.tri[e]
-            v[el] = polygon_factor(x[:, None], normal, poly)[:, 0] * undo[j[el]]
         v *= _member_visibility(evaluator, t, ends[j], other[j], L.vis[j], v, pos)
         rows.append(pos + first)
         tris.append(t)
@@ -232,19 +223,33 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
     return links, (np.concatenate(rows), np.concatenate(tris), np.concatenate(vals))
 
 
-def _member_shares(evaluator, lo, count, links, w, sending):
-    """(entry's link position, input triangle t, t's share of its link's light along w:
-    A max(0, n.w) sent or max(0, -n.w) taken) for the members ``order[lo:lo + count]`` of
-    each link's cluster end (compiled where numba builds: a large scene has tens of millions
-    of entries)."""
-    nodes, sc = evaluator.nodes, evaluator.nodes.scene
+def _member_shares(evaluator, lo, count, links, w, sending, other, undo):
+    """(entry's link position, input triangle t, t's share of its link's light) for the
+    members ``order[lo:lo + count]`` of each link's cluster end: A max(0, n.w) sent or
+    max(0, -n.w) taken along w where the link's ``other`` end is a cluster; where it is an
+    element, t's closed form to it (sending: from the element's centre to t; taking: from
+    t's centroid to the element) times the link's ``undo``. Compiled where numba builds (a
+    large scene has tens of millions of entries; numpy's gathers of their points and
+    triangles took 30 s of the atrium's solve)."""
+    nodes, sc, eps = evaluator.nodes, evaluator.nodes.scene, evaluator.caster.epsilon
     kernel = compiled.kernel("member_shares")
     if kernel is not None:
-        return kernel(lo, count, links, nodes.order, sc.normals, sc.areas, w, sending)
+        return kernel(lo, count, links, nodes.order, sc.normals, sc.areas, w, sending, other, nodes.cluster,
+                      nodes.center, nodes.tri, nodes.normal, evaluator.corners, evaluator.centroids, eps, undo)
     pos, at = ranges(lo, count)
     t, j = nodes.order[at], links[pos]
     cos = np.einsum("ij,ij->i", sc.normals[t], w[j])
-    return pos, t, sc.areas[t] * np.maximum(cos, 0.0) if sending else np.maximum(-cos, 0.0)
+    v = sc.areas[t] * np.maximum(cos, 0.0) if sending else np.maximum(-cos, 0.0)
+    el = np.flatnonzero(~nodes.cluster[other[j]])
+    if len(el):
+        e, te = other[j[el]], t[el]
+        if sending:
+            x, normal = nodes.center[e] + eps * nodes.normal[e], nodes.normal[e]
+            poly = evaluator.corners[te]
+        else:
+            x, normal, poly = evaluator.centroids[te] + eps * sc.normals[te], sc.normals[te], nodes.tri[e]
+        v[el] = polygon_factor(x[:, None], normal, poly)[:, 0] * undo[j[el]]
+    return pos, t, v
 
 
 def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndarray, vis: np.ndarray,
@@ -263,16 +268,23 @@ def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndar
     cast = np.flatnonzero((vis > 0) & (vis < 1) & (v > 0))
     if not len(cast):
         return out
-    sc = evaluator.nodes.scene
-    u = hashed_uniforms((end[cast], other[cast], t[cast]), 5)
-    tc, oc = t[cast], other[cast]
-    a, na = triangle_points(evaluator.corners[tc], u[0], u[1]), sc.normals[tc]
-    b, nb = evaluator.points_on(oc, u[2:].T[:, None])                   # by area where oc is a cluster
-    b, nb = b[:, 0], nb[:, 0]
-    d = b - a
-    faced = (np.einsum("ij,ij->i", na, d) > 0) & (np.einsum("ij,ij->i", nb, d) < 0)
+    nd, caster = evaluator.nodes, evaluator.caster
     seen = np.ones(len(cast))
-    seen[faced] = evaluator.caster.clear_between(a[faced], b[faced], na[faced], nb[faced])
+    kernel = compiled.kernel("member_rays")
+    if kernel is not None:
+        faced, origin, direction, length = kernel(end[cast], other[cast], t[cast], nd.cluster, evaluator.span,
+                                                  evaluator.cum_area, nd.order, nd.tri, nd.normal,
+                                                  evaluator.corners, nd.scene.normals, caster.epsilon)
+        seen[faced] = caster.reaches(origin[faced], direction[faced], length[faced])
+    else:
+        u = hashed_uniforms((end[cast], other[cast], t[cast]), 5)
+        tc, oc = t[cast], other[cast]
+        a, na = triangle_points(evaluator.corners[tc], u[0], u[1]), nd.scene.normals[tc]
+        b, nb = evaluator.points_on(oc, u[2:].T[:, None])               # by area where oc is a cluster
+        b, nb = b[:, 0], nb[:, 0]
+        d = b - a
+        faced = (np.einsum("ij,ij->i", na, d) > 0) & (np.einsum("ij,ij->i", nb, d) < 0)
+        seen[faced] = caster.clear_between(a[faced], b[faced], na[faced], nb[faced])
     out[cast] = seen
     # per link: keep the entries' sum, so the link's own visibility stands
     total, kept = np.bincount(pos, weights=v)[pos], np.bincount(pos, weights=v * out)[pos]
