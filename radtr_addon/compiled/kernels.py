@@ -232,8 +232,18 @@ def _member(e, k, cluster, span, order, node_tri, node_normal, corners, normals)
     return node_tri[e], node_normal[e]
 
 
+@njit(cache=True)
+def _box_ahead(n, p, lo, hi, e):
+    """How far the box (lo, hi) of node e reaches ahead of the plane through p facing n."""
+    out = 0.0
+    for c in range(3):
+        mid, half = (lo[e, c] + hi[e, c]) / 2, (hi[e, c] - lo[e, c]) / 2
+        out += n[c] * (mid - p[c]) + abs(n[c]) * half
+    return out
+
+
 @njit(parallel=True, cache=True)
-def _facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, tol, out):
+def _facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, lo, hi, tol, out):
     """out[m]: whether some pair of the two ends' triangles has each one's corner ahead of the other's plane."""
     for m in prange(len(src)):
         s, r = src[m], rcv[m]
@@ -242,6 +252,8 @@ def _facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, norm
         found = False
         for i in range(a):
             ts, ns = _member(s, i, cluster, span, order, node_tri, node_normal, corners, normals)
+            if _box_ahead(ns, ts[0], lo, hi, r) <= tol:
+                continue                                 # all of R's box behind this one's plane
             for j in range(b):
                 tr, nr = _member(r, j, cluster, span, order, node_tri, node_normal, corners, normals)
                 ahead_r, ahead_s = -np.inf, -np.inf
@@ -258,18 +270,19 @@ def _facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, norm
         out[m] = found
 
 
-def facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, tol):
+def facing(src, rcv, cluster, span, order, node_tri, node_normal, corners, normals, lo, hi, tol):
     """``hierarchical.links.Evaluator.facing`` for links (src, rcv) of nodes: True where some
     triangle of one end has a corner of some triangle of the other ahead of its plane (more
     than ``tol``) and that one has a corner of it ahead of its own, pair by pair until one
     is found (a cluster's input triangles ``order[span[e, 0]:span[e, 1]]``, an element its
-    own ``node_tri``)."""
+    own ``node_tri``); a triangle of the source with all of the receiver's bounding box
+    (``lo``, ``hi``) behind its plane is passed over whole."""
     src, rcv = _ints(src), _ints(rcv)
     if len(src) != len(rcv):
         raise ValueError(f"{len(src)} sources but {len(rcv)} receivers")
     out = np.empty(len(src), np.bool_)
     _facing(src, rcv, np.ascontiguousarray(cluster, np.bool_), _ints(span), _ints(order), _reals(node_tri),
-            _reals(node_normal), _reals(corners), _reals(normals), float(tol), out)
+            _reals(node_normal), _reals(corners), _reals(normals), _reals(lo), _reals(hi), float(tol), out)
     return out
 
 
@@ -466,7 +479,8 @@ SMOKE = {
     "facing": lambda: (np.array([0]), np.array([1]), np.array([False, False]), np.zeros((2, 2), np.int64),
                        np.array([0]),
                        np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0.0, 0, 1], [0, 1, 1], [1, 0, 1]]]),
-                       np.array([[0.0, 0, 1], [0, 0, -1]]), np.zeros((1, 3, 3)), np.eye(3)[:1], 1e-9),
+                       np.array([[0.0, 0, 1], [0, 0, -1]]), np.zeros((1, 3, 3)), np.eye(3)[:1],
+                       np.array([[0.0, 0, 0], [0, 0, 1]]), np.array([[1.0, 1, 0], [1, 1, 1]]), 1e-9),
     "ray_light": lambda: (np.array([0, -1]), np.full((2, 3), 0.25), np.array([[0.0, 0, -1], [0, 0, 1]]), np.ones(2),
                           np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]), np.ones((1, 6, 3)), np.ones((1, 3)),
                           np.array([False]), np.array([True]), np.ones(1), np.array([[0.0, 0, 1]]),

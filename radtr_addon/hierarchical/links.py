@@ -199,7 +199,7 @@ class Evaluator:
             return out
         if kernel is not None:
             out[small] = kernel(s[small], r[small], nd.cluster, self.span, nd.order, nd.tri, nd.normal,
-                                self.corners, nd.scene.normals, tol)
+                                self.corners, nd.scene.normals, nd.lo, nd.hi, tol)
             return out
         cs, cr = cs[small], cr[small]
         ts, ns = self._members(s[small], cs)
