@@ -172,31 +172,35 @@ def _splitmix(keys, count, out):
 
 
 @njit(parallel=True, cache=True)
-def _member_rays(end, other, t, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, eps,
-                 faced, origin, direction, length):
+def _member_rays(pos, t, link, end, other, vis, v, cluster, span, cum_area, order, node_tri, node_normal, corners,
+                 normals, eps, faced, origin, direction, length):
     for m in prange(len(t)):
+        faced[m] = False
+        j = link[pos[m]]
+        if not (vis[j] > 0 and vis[j] < 1 and v[m] > 0):
+            continue
         u, keys = np.empty(5), np.empty(3, np.int64)
-        keys[0], keys[1], keys[2] = end[m], other[m], t[m]
+        keys[0], keys[1], keys[2] = end[j], other[j], t[m]
         _splitmix(keys, 5, u)
         tt = t[m]
-        r, v = np.sqrt(u[0]), u[1]
+        r, s = np.sqrt(u[0]), u[1]
         a, na = corners[tt], normals[tt]
         p = np.empty(3)
         for c in range(3):
-            p[c] = a[0, c] + r * (a[1, c] - a[0, c] + v * (a[2, c] - a[1, c]))
-        e = other[m]
+            p[c] = a[0, c] + r * (a[1, c] - a[0, c] + s * (a[2, c] - a[1, c]))
+        e = other[j]
         if cluster[e]:
             lo, hi = span[e, 0], span[e, 1]
             base = cum_area[lo - 1] if lo > 0 else 0.0
             pick = base + u[2] * (cum_area[hi - 1] - base)
-            s = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
-            b, nb = corners[s], normals[s]
+            k = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
+            b, nb = corners[k], normals[k]
         else:
             b, nb = node_tri[e], node_normal[e]
-        r, v = np.sqrt(u[3]), u[4]
+        r, s = np.sqrt(u[3]), u[4]
         q = np.empty(3)
         for c in range(3):
-            q[c] = b[0, c] + r * (b[1, c] - b[0, c] + v * (b[2, c] - b[1, c]))
+            q[c] = b[0, c] + r * (b[1, c] - b[0, c] + s * (b[2, c] - b[1, c]))
         d0, d1, d2 = q[0] - p[0], q[1] - p[1], q[2] - p[2]
         faced[m] = (na[0] * d0 + na[1] * d1 + na[2] * d2 > 0) and (nb[0] * d0 + nb[1] * d1 + nb[2] * d2 < 0)
         if faced[m]:
@@ -206,20 +210,23 @@ def _member_rays(end, other, t, cluster, span, cum_area, order, node_tri, node_n
             length[m] = ray[6]
 
 
-def member_rays(end, other, t, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, eps):
-    """``hierarchical.solve._member_visibility``'s rays: per entry (input triangle t of the
-    cluster ``end``, the link's ``other`` end) a point on t and one on ``other`` (by area
-    over a cluster's members, ``points_on``) from ``sampling.hashed_uniforms`` of (end,
-    other, t), whether the two face each other, and where they do the ray of
+def member_rays(pos, t, link, end, other, vis, v, cluster, span, cum_area, order, node_tri, node_normal, corners,
+                normals, eps):
+    """``hierarchical.solve._member_visibility``'s rays: per entry (link ``link[pos]``, input
+    triangle t of its cluster ``end``, share v) of a partly visible link (0 < ``vis`` < 1)
+    with v > 0, a point on t and one on the link's ``other`` end (by area over a cluster's
+    members, ``points_on``) from ``sampling.hashed_uniforms`` of (end, other, t); whether
+    the two face each other (False for entries not cast), and where they do the ray of
     ``EmbreeRays.clear_between`` (origins, directions (k, 3), lengths (k,))."""
-    if not len(end) == len(other) == len(t):
-        raise ValueError(f"{len(end)} ends, {len(other)} others and {len(t)} triangles")
+    if not len(pos) == len(t) == len(v):
+        raise ValueError(f"{len(pos)} positions, {len(t)} triangles and {len(v)} shares")
     k = len(t)
     faced = np.empty(k, np.bool_)
     origin, direction, length = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k)
-    _member_rays(_ints(end), _ints(other), _ints(t), np.ascontiguousarray(cluster, np.bool_), _ints(span),
-                 _reals(cum_area), _ints(order), _reals(node_tri), _reals(node_normal), _reals(corners),
-                 _reals(normals), float(eps), faced, origin, direction, length)
+    _member_rays(_ints(pos), _ints(t), _ints(link), _ints(end), _ints(other), _reals(vis), _reals(v),
+                 np.ascontiguousarray(cluster, np.bool_), _ints(span), _reals(cum_area), _ints(order),
+                 _reals(node_tri), _reals(node_normal), _reals(corners), _reals(normals), float(eps), faced, origin,
+                 direction, length)
     return faced, origin, direction, length
 
 
@@ -489,7 +496,8 @@ SMOKE = {
                               np.ones(1), np.eye(3)[:1], True, np.array([0]), np.array([False]), np.zeros((1, 3)),
                               np.array([[[0.0, 0, 1], [1, 0, 1], [0, 1, 1]]]), np.array([[0.0, 0, 1]]),
                               np.array([[[0.0, 0, 1], [1, 0, 1], [0, 1, 1]]]), np.zeros((1, 3)), 1e-6, np.ones(1)),
-    "member_rays": lambda: (np.array([1]), np.array([0]), np.array([0]), np.array([False, True]),
+    "member_rays": lambda: (np.array([0]), np.array([0]), np.array([0]), np.array([1]), np.array([0]),
+                            np.array([0.5]), np.array([1.0]), np.array([False, True]),
                             np.array([[0, 1], [0, 1]]), np.array([0.5]), np.array([0]),
                             np.array([[[0.0, 0, 1], [0, 1, 1], [1, 0, 1]]] * 2), np.array([[0.0, 0, -1]] * 2),
                             np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]), np.array([[0.0, 0, 1]]), 1e-6),

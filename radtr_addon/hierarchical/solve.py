@@ -212,8 +212,7 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
         last = max(first + 1, int(np.searchsorted(np.cumsum(count[first:]), MAP_BATCH)) + first)
         pos, t, v = _member_shares(evaluator, lo[first:last], count[first:last], links[first:last], w, sending,
                                    other, undo)
-        j = links[first:last][pos]
-        v *= _member_visibility(evaluator, t, ends[j], other[j], L.vis[j], v, pos)
+        _member_visibility(evaluator, pos, t, links[first:last], ends, other, L.vis, v)
         rows.append(pos + first)
         tris.append(t)
         vals.append(v)
@@ -252,43 +251,49 @@ def _member_shares(evaluator, lo, count, links, w, sending, other, undo):
     return pos, t, v
 
 
-def _member_visibility(evaluator, t: np.ndarray, end: np.ndarray, other: np.ndarray, vis: np.ndarray,
-                       v: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """Per (link, triangle t of its small cluster ``end``) entry of a partly visible link, a
-    factor that hands the link's light to the triangles that see the other end: one shadow
-    ray from a point of t to a point of ``other`` (both drawn from a hash of the entry, so
-    maps carried over rounds equal maps made afresh), the entries of each link then scaled
-    so that their sum (the link's visibility, from its own rays) is kept. A cluster's
-    visibility shared by all its triangles lets the light of its lit, exposed parts go out
-    as if from its hidden ones too. Entries not cast, or of links that see their other end
-    whole or not at all, get 1."""
-    from ..sampling import hashed_uniforms, triangle_points
-
-    out = np.ones(len(t))
-    cast = np.flatnonzero((vis > 0) & (vis < 1) & (v > 0))
-    if not len(cast):
-        return out
+def _member_visibility(evaluator, pos: np.ndarray, t: np.ndarray, link: np.ndarray, end: np.ndarray,
+                       other: np.ndarray, vis: np.ndarray, v: np.ndarray):
+    """Scale, in place, the shares v of entries (link position ``pos``, triangle t of its
+    small cluster end; the links ``link``, their ``end`` and ``other`` ends and ``vis``) of
+    partly visible links, to hand each link's light to the triangles that see its other
+    end: one shadow ray from a point of t to a point of ``other`` (both drawn from a hash of
+    the entry, so maps carried over rounds equal maps made afresh), the entries of each link
+    then scaled so that their sum (the link's visibility, from its own rays) is kept. A
+    cluster's visibility shared by all its triangles lets the light of its lit, exposed
+    parts go out as if from its hidden ones too. Entries of links that see their other end
+    whole or not at all stay, and so do a link's entries where every ray was blocked. The
+    rays are made in one compiled pass where numba builds (``member_rays``)."""
     nd, caster = evaluator.nodes, evaluator.caster
-    seen = np.ones(len(cast))
     kernel = compiled.kernel("member_rays")
     if kernel is not None:
-        faced, origin, direction, length = kernel(end[cast], other[cast], t[cast], nd.cluster, evaluator.span,
+        faced, origin, direction, length = kernel(pos, t, link, end, other, vis, v, nd.cluster, evaluator.span,
                                                   evaluator.cum_area, nd.order, nd.tri, nd.normal,
                                                   evaluator.corners, nd.scene.normals, caster.epsilon)
-        seen[faced] = caster.reaches(origin[faced], direction[faced], length[faced])
+        cast = np.flatnonzero(faced)
+        seen = caster.reaches(origin[cast], direction[cast], length[cast])
     else:
-        u = hashed_uniforms((end[cast], other[cast], t[cast]), 5)
-        tc, oc = t[cast], other[cast]
+        from ..sampling import hashed_uniforms, triangle_points
+
+        j = link[pos]
+        cast = np.flatnonzero((vis[j] > 0) & (vis[j] < 1) & (v > 0))
+        u = hashed_uniforms((end[j[cast]], other[j[cast]], t[cast]), 5)
+        tc, oc = t[cast], other[j[cast]]
         a, na = triangle_points(evaluator.corners[tc], u[0], u[1]), nd.scene.normals[tc]
         b, nb = evaluator.points_on(oc, u[2:].T[:, None])               # by area where oc is a cluster
         b, nb = b[:, 0], nb[:, 0]
         d = b - a
         faced = (np.einsum("ij,ij->i", na, d) > 0) & (np.einsum("ij,ij->i", nb, d) < 0)
-        seen[faced] = caster.clear_between(a[faced], b[faced], na[faced], nb[faced])
-    out[cast] = seen
+        cast = cast[faced]
+        seen = caster.clear_between(a[faced], b[faced], na[faced], nb[faced])
+    blocked = cast[~seen]
+    if not len(blocked):
+        return
     # per link: keep the entries' sum, so the link's own visibility stands
-    total, kept = np.bincount(pos, weights=v)[pos], np.bincount(pos, weights=v * out)[pos]
-    return np.where(kept > 0, out * total / np.maximum(kept, 1e-300), 1.0)
+    total = np.bincount(pos, weights=v, minlength=len(link))
+    kept = total - np.bincount(pos[blocked], weights=v[blocked], minlength=len(link))
+    some = kept > 1e-9 * total
+    v[blocked[some[pos[blocked]]]] = 0.0
+    v *= np.where(some, total / np.where(some, kept, 1.0), 1.0)[pos]
 
 
 @dataclass
