@@ -1096,6 +1096,26 @@ def test_member_entries_compiled_equal_numpy_form(monkeypatch, tiled_room):
     assert np.all(shown <= nd.area[L.src[links]] * (1 + 1e-12)) and (shown > 0).mean() > 0.9
 
 
+def test_source_term_compiled_equals_numpy_form(monkeypatch, tiled_room):
+    """What each link carries (``_source_term``: an element source's B of its open part or
+    its part in a gap, a cluster's read between its table's directions, their largest for
+    the error bound), compiled where numba builds, equals numpy's form on the solved tiled
+    room with boxes, whose links have both kinds of source and both kinds of element end."""
+    from radtr_addon import compiled
+
+    if compiled.kernel("source_term") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    hr = tiled_room
+    L = hr.links
+    assert hr.nodes.cluster[L.src].sum() > 100 and (~hr.nodes.cluster[L.src]).sum() > 100
+    for bound in (False, True):
+        got = hr._source_term(L, bound)
+        with monkeypatch.context() as m:
+            m.setattr(compiled, "kernel", lambda name: None)
+            ref = hr._source_term(L, bound)
+        assert got.max() > 0 and np.allclose(got, ref, rtol=1e-12, atol=0)
+
+
 def window_room():
     """A closed 4 x 4 x 2.5 m room (rho 0.5, faces inwards) with a 1 x 1 m window in its wall
     x = 4 (y 1.5..2.5, z 1..2): the only way in for a sky."""

@@ -461,6 +461,34 @@ def ray_light(row, x, dirs, dist, tri, H6, light, flat, hot, density, normal, po
     return out
 
 
+@njit(parallel=True, cache=True)
+def _source_term(src, d, dw, in_gap, cluster, Bgap, Bopen, table, bound, out):
+    for m in prange(len(src)):
+        s = src[m]
+        for c in range(3):
+            if not cluster[s]:
+                out[m, c] = Bgap[s, c] if in_gap[m] else Bopen[s, c]
+            elif bound:
+                out[m, c] = max(table[s, d[m, 0], c], table[s, d[m, 1], c], table[s, d[m, 2], c])
+            else:
+                out[m, c] = dw[m, 0] * table[s, d[m, 0], c] + dw[m, 1] * table[s, d[m, 1], c] \
+                    + dw[m, 2] * table[s, d[m, 2], c]
+
+
+def source_term(src, d, dw, in_gap, cluster, Bgap, Bopen, table, bound):
+    """``hierarchical.solve.HierarchicalRadiosity._source_term`` before the cluster maps: per
+    link (source ``src``, its three table directions ``d`` and their weights ``dw``) the
+    radiosity (L, 3) of an element source, ``Bgap`` where the link is ``in_gap`` else
+    ``Bopen``, and of a cluster source its ``table`` read between the directions (their
+    largest where ``bound``), in one pass (numpy's gathers and where, once a sweep over a
+    large scene's millions of links, took 13 s of its solve)."""
+    src = _ints(src)
+    out = np.empty((len(src), 3))
+    _source_term(src, _ints(d), _reals(dw), np.ascontiguousarray(in_gap, np.bool_),
+                 np.ascontiguousarray(cluster, np.bool_), _reals(Bgap), _reals(Bopen), _reals(table), bool(bound), out)
+    return out
+
+
 def _ints(a):
     """Contiguous int64, the one type the kernels are built for (no rebuild at a caller's int32)."""
     return np.ascontiguousarray(a, np.int64)
@@ -496,6 +524,9 @@ SMOKE = {
                               np.ones(1), np.eye(3)[:1], True, np.array([0]), np.array([False]), np.zeros((1, 3)),
                               np.array([[[0.0, 0, 1], [1, 0, 1], [0, 1, 1]]]), np.array([[0.0, 0, 1]]),
                               np.array([[[0.0, 0, 1], [1, 0, 1], [0, 1, 1]]]), np.zeros((1, 3)), 1e-6, np.ones(1)),
+    "source_term": lambda: (np.array([0, 1]), np.zeros((2, 3), np.int64), np.full((2, 3), 1 / 3),
+                            np.array([False, True]), np.array([True, False]), np.ones((2, 3)), np.ones((2, 3)),
+                            np.ones((1, 3, 3)), False),
     "member_rays": lambda: (np.array([0]), np.array([0]), np.array([0]), np.array([1]), np.array([0]),
                             np.array([0.5]), np.array([1.0]), np.array([False, True]),
                             np.array([[0, 1], [0, 1]]), np.array([0.5]), np.array([0]),

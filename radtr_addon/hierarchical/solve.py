@@ -607,12 +607,16 @@ class HierarchicalRadiosity:
         links from a small cluster (``ClusterMaps``), else read between the table's
         directions (``bound``: the largest of them, for the error estimate)."""
         nd = self.nodes
-        cs = nd.cluster[L.src]
         in_gap = self._element_gather()[0] if L is self.links else self.contacts.in_gap(L.src, L.rcv)
-        term = np.where(in_gap[:, None], self.Bgap[L.src], self.Bopen[L.src])
-        if cs.any():
-            corners = self.table[L.src[cs, None], L.d[cs]]                 # (c, 3 directions, 3)
-            term[cs] = corners.max(axis=1) if bound else np.einsum("cj,cjk->ck", L.dw[cs], corners)
+        kernel = compiled.kernel("source_term")
+        if kernel is not None:
+            term = kernel(L.src, L.d, L.dw, in_gap, nd.cluster, self.Bgap, self.Bopen, self.table, bound)
+        else:
+            cs = nd.cluster[L.src]
+            term = np.where(in_gap[:, None], self.Bgap[L.src], self.Bopen[L.src])
+            if cs.any():
+                corners = self.table[L.src[cs, None], L.d[cs]]             # (c, 3 directions, 3)
+                term[cs] = corners.max(axis=1) if bound else np.einsum("cj,cjk->ck", L.dw[cs], corners)
         if L is self.links and not bound:
             links, sent = self._cluster_maps().sent(self.Bopen[nd.element_root])
             term[links] = sent
