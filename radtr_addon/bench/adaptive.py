@@ -203,7 +203,7 @@ def plot(curves: list[dict], path: Path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import NullFormatter
+    from matplotlib.ticker import FuncFormatter, NullFormatter
 
     scenes = list(dict.fromkeys(c["scene"] for c in curves))
     fig, axes = plt.subplots(2, len(scenes), figsize=(6 * len(scenes), 9), squeeze=False)
@@ -222,7 +222,9 @@ def plot(curves: list[dict], path: Path):
             ax.set(title=f"{scene}: {what}", xlabel="seconds", ylabel=f"{what} RMS error vs Cycles reference")
             ax.grid(True, which="both", alpha=0.3)
             ax.xaxis.set_minor_formatter(NullFormatter())
-            ax.yaxis.set_minor_formatter(NullFormatter())
+            percent = FuncFormatter(lambda v, _: f"{100 * v:.3g}%")    # a span within one decade has no major tick
+            ax.yaxis.set_major_formatter(percent)
+            ax.yaxis.set_minor_formatter(percent)
             ax.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
