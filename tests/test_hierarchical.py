@@ -1082,6 +1082,10 @@ def test_member_entries_compiled_equal_numpy_form(monkeypatch, tiled_room):
         assert small.sum() > 100 and (small & ~nd.cluster[other]).sum() > 100
         assert (small & (L.vis > 0) & (L.vis < 1)).sum() > 10          # some entries cast rays
         got = _member_entries(ev, L, w, sending, undo)
+        links = got[0]
+        lo, count = ev.span[ends[links], 0], ev.size(ends[links])
+        shares = _member_shares(ev, lo, count, links, w, sending, other, undo)[2]
+        assert (got[1][2] == 0).sum() > (shares == 0).sum()              # some rays were blocked
         with monkeypatch.context() as m:
             m.setattr(compiled, "kernel", lambda name: None)
             ref = _member_entries(ev, L, w, sending, undo)
@@ -1099,14 +1103,15 @@ def test_member_entries_compiled_equal_numpy_form(monkeypatch, tiled_room):
 def test_source_term_compiled_equals_numpy_form(monkeypatch, tiled_room):
     """What each link carries (``_source_term``: an element source's B of its open part or
     its part in a gap, a cluster's read between its table's directions, their largest for
-    the error bound), compiled where numba builds, equals numpy's form on the solved tiled
+    the error bound; on a copy of the links, which are then not the solve's own that
+    ``ClusterMaps`` sums member by member), compiled where numba builds, equals numpy's form on the solved tiled
     room with boxes, whose links have both kinds of source and both kinds of element end."""
     from radtr_addon import compiled
 
     if compiled.kernel("source_term") is None:
         pytest.skip("numba cannot build the kernel here (the warning says why)")
     hr = tiled_room
-    L = hr.links
+    L = hr.links.take(np.ones(len(hr.links), bool))    # not the solve's own: every cluster by its table
     assert hr.nodes.cluster[L.src].sum() > 100 and (~hr.nodes.cluster[L.src]).sum() > 100
     for bound in (False, True):
         got = hr._source_term(L, bound)
@@ -1114,6 +1119,25 @@ def test_source_term_compiled_equals_numpy_form(monkeypatch, tiled_room):
             m.setattr(compiled, "kernel", lambda name: None)
             ref = hr._source_term(L, bound)
         assert got.max() > 0 and np.allclose(got, ref, rtol=1e-12, atol=0)
+
+
+def test_hashed_points_compiled_equal_numpy_hash():
+    """The compiled hash that places a cluster map entry's shadow ray (``kernels._splitmix``)
+    draws the same uniforms as ``sampling.hashed_uniforms``, bit for bit, for keys up to
+    2^63 (its 64-bit products wrap alike)."""
+    from radtr_addon import compiled
+    from radtr_addon.sampling import hashed_uniforms
+
+    if compiled.kernel("member_rays") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    kernels = compiled._kernels()
+    rng = np.random.default_rng(3)
+    keys = np.vstack([rng.integers(0, 2**63 - 1, (200, 3)), [[0, 0, 0], [2**63 - 1] * 3, [1, 2, 3]]])
+    want = hashed_uniforms(tuple(keys.T), 5)
+    out = np.empty(5)
+    for k, key in enumerate(keys):
+        kernels._splitmix(np.ascontiguousarray(key, np.int64), 5, out)
+        assert np.array_equal(out, want[:, k])
 
 
 def window_room():

@@ -241,12 +241,13 @@ def _member(e, k, cluster, span, order, node_tri, node_normal, corners, normals)
 
 @njit(cache=True)
 def _box_ahead(n, p, lo, hi, e):
-    """How far the box (lo, hi) of node e reaches ahead of the plane through p facing n."""
-    out = 0.0
-    for c in range(3):
-        mid, half = (lo[e, c] + hi[e, c]) / 2, (hi[e, c] - lo[e, c]) / 2
-        out += n[c] * (mid - p[c]) + abs(n[c]) * half
-    return out
+    """How far the box (lo, hi) of node e reaches ahead of the plane through p facing n: at
+    its corner farthest along n, summed as ``_facing`` sums a triangle's corner, so that in
+    floating point too no corner inside the box comes out further."""
+    x0 = hi[e, 0] if n[0] > 0 else lo[e, 0]
+    x1 = hi[e, 1] if n[1] > 0 else lo[e, 1]
+    x2 = hi[e, 2] if n[2] > 0 else lo[e, 2]
+    return n[0] * (x0 - p[0]) + n[1] * (x1 - p[1]) + n[2] * (x2 - p[2])
 
 
 @njit(parallel=True, cache=True)

@@ -261,9 +261,13 @@ def _member_visibility(evaluator, pos: np.ndarray, t: np.ndarray, link: np.ndarr
     then scaled so that their sum (the link's visibility, from its own rays) is kept. A
     cluster's visibility shared by all its triangles lets the light of its lit, exposed
     parts go out as if from its hidden ones too. Entries of links that see their other end
-    whole or not at all stay, and so do a link's entries where every ray was blocked. The
-    rays are made in one compiled pass where numba builds (``member_rays``)."""
+    whole or not at all stay, and so do a link's entries where every ray was blocked or
+    those that arrive carry under 1e-9 of its shares (rescaled, they would be a billion
+    times their own). The rays are made in one compiled pass where numba builds
+    (``member_rays``)."""
     nd, caster = evaluator.nodes, evaluator.caster
+    if not ((vis[link] > 0) & (vis[link] < 1)).any():
+        return
     kernel = compiled.kernel("member_rays")
     if kernel is not None:
         faced, origin, direction, length = kernel(pos, t, link, end, other, vis, v, nd.cluster, evaluator.span,
