@@ -77,23 +77,36 @@ def polygon_factor(points: np.ndarray, normals: np.ndarray, tris: np.ndarray) ->
     return out
 
 
+@njit(cache=True)
+def _triangle_point(tri, u, v, out):
+    """``sampling.triangle_points`` for one triangle (3, 3) and uniforms u, v, into out (3,)."""
+    r = np.sqrt(u)
+    for c in range(3):
+        out[c] = tri[0, c] + r * (tri[1, c] - tri[0, c] + v * (tri[2, c] - tri[1, c]))
+
+
+@njit(cache=True)
+def _point_on(e, u0, u1, u2, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, out,
+              out_normal):
+    """One point of ``points_on`` into out (3,), its normal into out_normal (3,)."""
+    if cluster[e]:
+        lo, hi = span[e, 0], span[e, 1]
+        base = cum_area[lo - 1] if lo > 0 else 0.0
+        pick = base + u0 * (cum_area[hi - 1] - base)
+        t = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
+        tri, n = corners[t], normals[t]
+    else:
+        tri, n = node_tri[e], node_normal[e]
+    _triangle_point(tri, u1, u2, out)
+    out_normal[:] = n
+
+
 @njit(parallel=True, cache=True)
 def _points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, u, out, out_normal):
     for m in prange(len(ends)):
-        e = ends[m]
         for k in range(u.shape[1]):
-            if cluster[e]:
-                lo, hi = span[e, 0], span[e, 1]
-                base = cum_area[lo - 1] if lo > 0 else 0.0
-                pick = base + u[m, k, 0] * (cum_area[hi - 1] - base)
-                t = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
-                tri, n = corners[t], normals[t]
-            else:
-                tri, n = node_tri[e], node_normal[e]
-            r, v = np.sqrt(u[m, k, 1]), u[m, k, 2]
-            for c in range(3):
-                out[m, k, c] = tri[0, c] + r * (tri[1, c] - tri[0, c] + v * (tri[2, c] - tri[1, c]))
-                out_normal[m, k, c] = n[c]
+            _point_on(ends[m], u[m, k, 0], u[m, k, 1], u[m, k, 2], cluster, span, cum_area, order, node_tri,
+                      node_normal, corners, normals, out[m, k], out_normal[m, k])
 
 
 def points_on(ends, cluster, span, cum_area, order, node_tri, node_normal, corners, normals, u):
@@ -171,43 +184,35 @@ def _splitmix(keys, count, out):
         out[i] = np.float64(z >> np.uint64(11)) / 9007199254740992.0
 
 
+#: Entries of ``member_rays`` a thread takes at a time (its scratch made once for them).
+MEMBER_RAYS_BLOCK = 4096
+
+
 @njit(parallel=True, cache=True)
 def _member_rays(pos, t, link, end, other, vis, v, cluster, span, cum_area, order, node_tri, node_normal, corners,
                  normals, eps, faced, origin, direction, length):
-    for m in prange(len(t)):
-        faced[m] = False
-        j = link[pos[m]]
-        if not (vis[j] > 0 and vis[j] < 1 and v[m] > 0):
-            continue
+    for block in prange((len(t) + MEMBER_RAYS_BLOCK - 1) // MEMBER_RAYS_BLOCK):
         u, keys = np.empty(5), np.empty(3, np.int64)
-        keys[0], keys[1], keys[2] = end[j], other[j], t[m]
-        _splitmix(keys, 5, u)
-        tt = t[m]
-        r, s = np.sqrt(u[0]), u[1]
-        a, na = corners[tt], normals[tt]
-        p = np.empty(3)
-        for c in range(3):
-            p[c] = a[0, c] + r * (a[1, c] - a[0, c] + s * (a[2, c] - a[1, c]))
-        e = other[j]
-        if cluster[e]:
-            lo, hi = span[e, 0], span[e, 1]
-            base = cum_area[lo - 1] if lo > 0 else 0.0
-            pick = base + u[2] * (cum_area[hi - 1] - base)
-            k = order[min(lo + np.searchsorted(cum_area[lo:hi], pick, side="right"), hi - 1)]
-            b, nb = corners[k], normals[k]
-        else:
-            b, nb = node_tri[e], node_normal[e]
-        r, s = np.sqrt(u[3]), u[4]
-        q = np.empty(3)
-        for c in range(3):
-            q[c] = b[0, c] + r * (b[1, c] - b[0, c] + s * (b[2, c] - b[1, c]))
-        d0, d1, d2 = q[0] - p[0], q[1] - p[1], q[2] - p[2]
-        faced[m] = (na[0] * d0 + na[1] * d1 + na[2] * d2 > 0) and (nb[0] * d0 + nb[1] * d1 + nb[2] * d2 < 0)
-        if faced[m]:
-            ray = _ray_between(p[0], p[1], p[2], q[0], q[1], q[2], na[0], na[1], na[2], nb[0], nb[1], nb[2], eps)
-            for c in range(3):
-                origin[m, c], direction[m, c] = ray[c], ray[3 + c]
-            length[m] = ray[6]
+        p, q, nb = np.empty(3), np.empty(3), np.empty(3)
+        for m in range(block * MEMBER_RAYS_BLOCK, min((block + 1) * MEMBER_RAYS_BLOCK, len(t))):
+            faced[m] = False
+            j = link[pos[m]]
+            if not (vis[j] > 0 and vis[j] < 1 and v[m] > 0):
+                continue
+            keys[0], keys[1], keys[2] = end[j], other[j], t[m]
+            _splitmix(keys, 5, u)
+            na = normals[t[m]]
+            _triangle_point(corners[t[m]], u[0], u[1], p)
+            _point_on(other[j], u[2], u[3], u[4], cluster, span, cum_area, order, node_tri, node_normal, corners,
+                      normals, q, nb)
+            d0, d1, d2 = q[0] - p[0], q[1] - p[1], q[2] - p[2]
+            faced[m] = (na[0] * d0 + na[1] * d1 + na[2] * d2 > 0) and (nb[0] * d0 + nb[1] * d1 + nb[2] * d2 < 0)
+            if faced[m]:
+                ray = _ray_between(p[0], p[1], p[2], q[0], q[1], q[2], na[0], na[1], na[2], nb[0], nb[1], nb[2],
+                                   eps)
+                for c in range(3):
+                    origin[m, c], direction[m, c] = ray[c], ray[3 + c]
+                length[m] = ray[6]
 
 
 def member_rays(pos, t, link, end, other, vis, v, cluster, span, cum_area, order, node_tri, node_normal, corners,
