@@ -35,6 +35,10 @@ from .textures import varying_reflectance
 UNIFORM_ONLY = ("max_area", "levels", "method", "resolution", "rotate", "split", "split_level", "rays")
 #: Cosine rays per point (four an element) that sample the World in a hierarchical solve.
 SKY_RAYS = 64
+#: Shadow rays to each Light object at each point a final-gather ray hits (``direct_at``): a
+#: sun's one ray along its axis (a hard shadow), a lamp's from a point or two of it; the
+#: gather's own rays average them.
+HIT_LIGHT_SAMPLES = 1
 
 
 @dataclass
@@ -185,16 +189,21 @@ class Solve:
         return scene, np.arange(scene.n) < base.n
 
     def _external_light(self, scene):
-        """``external(tris, normals, bary=PATCH_POINTS, spread=False)``: irradiance (m,
-        points, 3) of the lights and the World at barycentric points of elements (the World
-        by ``SKY_RAYS`` cosine rays a point, drawn afresh at each call), each moved ``INSET``
-        towards the element's centre (a corner on the line where a wall meets the ceiling
-        would see out past it), or None when there are none. With ``spread``, also the same
-        with the World's rays drawn alike at the points of each element (``sky_irradiance``'s
+        """``external(tris, normals, bary=PATCH_POINTS, spread=False) -> (H, direct)``:
+        irradiance (m, points, 3) of the lights and the World at barycentric points of
+        elements (the World by ``SKY_RAYS`` cosine rays a point, drawn afresh at each call),
+        each moved ``INSET`` towards the element's centre (a corner on the line where a wall
+        meets the ceiling would see out past it), and ``direct``, the Light objects' part of
+        it; or None when there are none. With ``spread``, also (a third) the same with the
+        World's rays drawn alike at the points of each element (``sky_irradiance``'s
         ``shared``), whose differences are the sky's, not the rays' noise: what decides a
         split (``nodes.Nodes.init_light``). The light kept is drawn apart from it: an element
         kept because its alike rays all missed a window would keep their zero (a closed room
-        lit through a window held 15-18% too little of its sky light)."""
+        lit through a window held 15-18% too little of its sky light).
+        ``external.direct_at(points, normals)``: the Light objects' irradiance (k, 3) at
+        points on a surface, by ``HIT_LIGHT_SAMPLES`` shadow rays to each light (None when
+        there are no Light objects): what a final-gather ray takes at the point it hits
+        (``solve.HierarchicalRadiosity._gather_batch``)."""
         from .formfactors.raycast import EmbreeRays
         from .lights import PATCH_POINTS, irradiance_at
         from .reconstruct import INSET
@@ -211,17 +220,24 @@ class Solve:
             n = np.repeat(normals, k, axis=0)
             on = np.einsum("pc,ncd->npd", bary, tris)                     # (m, k, 3)
             on += INSET * (tris.mean(axis=1)[:, None] - on)
-            H = np.zeros((len(tris), k, 3))
+            direct = np.zeros((len(tris), k, 3))
             if lights:
-                H += irradiance_at(on.reshape(-1, 3) + caster.epsilon * n, n, lights, caster)[0].reshape(H.shape)
-            alike = H.copy() if spread else None
+                direct += irradiance_at(on.reshape(-1, 3) + caster.epsilon * n, n, lights,
+                                        caster)[0].reshape(direct.shape)
+            H, alike = direct.copy(), direct.copy()
             if sky is not None:                                           # a tiny triangle about each point
                 small = on[:, :, None] + 1e-3 * (tris[:, None] - on[:, :, None])
                 part = PatchScene(small.reshape(-1, 3), np.arange(3 * len(n)).reshape(-1, 3), 0.0, 0.0, 0, 0)
                 H += sky_irradiance(part, sky, caster=caster, seed=next(calls)).reshape(H.shape)
                 if spread:
                     alike += sky_irradiance(part, sky, caster=caster, seed=next(calls), shared=k).reshape(H.shape)
-            return (H, alike) if spread else H
+            return (H, direct, alike) if spread else (H, direct)
+
+        def direct_at(points, normals):
+            return irradiance_at(points + caster.epsilon * normals, normals, lights, caster,
+                                 samples=HIT_LIGHT_SAMPLES)[0]
+
+        external.direct_at = direct_at if lights else None
         return external
 
     def _add_lights(self):

@@ -77,8 +77,9 @@ class Nodes:
     ``tri`` (3, 3), vertex ids ``vids`` into ``vertices``, ``normal``, the input triangle
     ``root``, ``level`` below it, ``path`` (its child slots from the root, base 4), and
     ``E`` (exitance, own emission plus the reflected light of ``external``), ``H_ext``
-    (irradiance from lights outside the solve) and ``H_spread`` (how much rho H_ext varies
-    over the element, where it can split). Elements split at most ``max_level`` times below
+    (irradiance from lights outside the solve), ``H_direct`` (the Light objects' part of it,
+    which a final gather takes at the points it hits instead) and ``H_spread`` (how much rho
+    H_ext varies over the element, where it can split). Elements split at most ``max_level`` times below
     their input triangle, and not below ``min_area`` (m^2).
     """
 
@@ -96,7 +97,7 @@ class Nodes:
             "lo": (float, (3,)), "hi": (float, (3,)),
             "area": (float, ()), "tri": (float, (3, 3)), "vids": (np.int64, (3,)), "normal": (float, (3,)),
             "root": (np.int64, ()), "level": (np.int64, ()), "path": (np.int64, ()), "E": (float, (3,)),
-            "H_ext": (float, (3,)), "H_spread": (float, ()), "rho": (float, (3,)),
+            "H_ext": (float, (3,)), "H_direct": (float, (3,)), "H_spread": (float, ()), "rho": (float, (3,)),
         }
         for name, (dtype, shape) in self._arrays.items():
             setattr(self, name, np.zeros((16, *shape), dtype))
@@ -228,14 +229,17 @@ class Nodes:
             split = self.can_split(sel)
             fixed = sel[~split]
             if len(fixed):
-                self.H_ext[fixed] = self.external(self.tri[fixed], self.normal[fixed], cells).mean(axis=1)
+                H, direct = self.external(self.tri[fixed], self.normal[fixed], cells)
+                self.H_ext[fixed], self.H_direct[fixed] = H.mean(axis=1), direct.mean(axis=1)
             sel = sel[split]
             if not len(sel):
                 continue
             # the corners too: the vertex colours take the light there, so a leaf lit at a
             # corner and dark at its cells is split, not drawn as a long bright wedge
-            H, alike = self.external(self.tri[sel], self.normal[sel], np.vstack([cells, np.eye(3)]), spread=True)
+            H, direct, alike = self.external(self.tri[sel], self.normal[sel], np.vstack([cells, np.eye(3)]),
+                                             spread=True)
             self.H_ext[sel] = H[:, :len(cells)].mean(axis=1)
+            self.H_direct[sel] = direct[:, :len(cells)].mean(axis=1)
             self.H_spread[sel] = (self.rho[sel] * (alike.max(axis=1) - alike.min(axis=1))).max(axis=1)
         self.E[ids] += self.rho[ids] * self.H_ext[ids]
 

@@ -400,9 +400,11 @@ def gather_sides(rays: int, noise: np.ndarray, area: np.ndarray) -> np.ndarray:
 @dataclass
 class GatherTargets:
     """What a final gather's rays take their light from: the leaves (``caster``, by row of
-    ``leaf_ids``), the reflected ``light`` each sends (``_open_light``), which are ``hot``,
-    at what ``density`` per unit area the shadow rays draw them, which are ``flat``
-    (``light_shape``), and each input triangle's two-sided ``twin``."""
+    ``leaf_ids``), the reflected ``light`` each sends (``_open_light``) less, where ``at_hit``,
+    the Light objects' part, which the ray takes at the point it hits instead
+    (``direct_at``), which are ``hot``, at what ``density`` per unit area the shadow rays
+    draw them, which are ``flat`` (``light_shape``), and each input triangle's two-sided
+    ``twin``."""
 
     caster: object
     light: np.ndarray
@@ -413,6 +415,8 @@ class GatherTargets:
     tri: np.ndarray        # (leaves, 3, 3) corners
     normal: np.ndarray     # (leaves, 3)
     H6: np.ndarray         # (leaves, 6, 3) irradiance quadratics (``light_shape``)
+    at_hit: np.ndarray     # (leaves,) whose Light objects' light is made at each hit point
+    direct_at: object      # ``pipeline`` external's ``direct_at``, or None
 
 
 def ray_light(seen: GatherTargets, row: np.ndarray, x: np.ndarray, dirs: np.ndarray, dist: np.ndarray,
@@ -1048,7 +1052,7 @@ class HierarchicalRadiosity:
                 c = slice(first, first + batch)
                 corner = P.reshape(-1, 3)[c]
                 small = corner[:, None] + 0.01 * (np.repeat(T, 3, axis=0)[c] - corner[:, None])
-                out[c] = nd.external(small, normals[c], np.full((1, 3), 1 / 3))[:, 0]
+                out[c] = nd.external(small, normals[c], np.full((1, 3), 1 / 3))[0][:, 0]
                 yield start[2] + (start[3] - start[2]) * min(first + batch, len(out)) / len(out)
             H = H + out.reshape(H.shape)
         return H
@@ -1083,8 +1087,13 @@ class HierarchicalRadiosity:
         glow = reflected.mean(axis=1)
         hot = glow > HOT_FACTOR * np.average(glow, weights=nd.area[leaves])
         density = np.where(hot, glow, 0.0) / max(float((glow * nd.area[leaves])[hot].sum()), 1e-300)
-        seen = GatherTargets(caster, self._open_light(caster, reflected), hot, density, self.contacts.twin,
-                             self.contacts.covered[nd.root[leaves]], nd.tri[leaves], nd.normal[leaves], self.H6)
+        light, direct = self._open_light(caster, reflected, nd.rho[leaves] * nd.H_direct[leaves])
+        direct_at = getattr(nd.external, "direct_at", None)
+        at_hit = ~hot & (direct_at is not None)            # a hot leaf's shadow rays take its mean
+        light[at_hit] = np.maximum(light[at_hit] - direct[at_hit], 0.0)
+        seen = GatherTargets(caster, light, hot, density, self.contacts.twin,
+                             self.contacts.covered[nd.root[leaves]], nd.tri[leaves], nd.normal[leaves], self.H6,
+                             at_hit, direct_at)
         p, n, back = self._corner_points(tris, P, T, nd.normal[leaf])
         if rays < GATHER_ADAPTIVE:
             H, _ = yield from self._gather_pass(seen, p, n, np.full(len(p), grid_side(rays)), 3)
@@ -1141,6 +1150,11 @@ class HierarchicalRadiosity:
             leaf_hit, _ = self.leaf_at(other, barycentric(x[behind], sc.vertices[sc.triangles[other]]))
             row[behind] = np.searchsorted(leaves, leaf_hit)
         got = ray_light(seen, row, x, dirs, dist, n, rays, shadow)
+        if seen.direct_at is not None:                       # the Light objects' light where it lands
+            k = np.flatnonzero(row >= 0)
+            k = k[seen.at_hit[row[k]]]
+            front = caster.scene.normals[row[k]]             # a two-sided face's back: its twin's front
+            got[k] += caster.scene.rho[row[k]] * seen.direct_at(x[k], front)
         got = got.reshape(len(p), rays, 3)
         H = got.mean(axis=1)
         if m % 2 == 0:
@@ -1153,8 +1167,9 @@ class HierarchicalRadiosity:
             H, var = H + more, var + more_var
         return H, var
 
-    def _open_light(self, caster, reflected: np.ndarray) -> np.ndarray:
-        """The reflected light (leaves, 3) a gather ray takes from each leaf it hits: ``reflected``
+    def _open_light(self, caster, reflected: np.ndarray, lights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The reflected light (leaves, 3) a gather ray takes from each leaf it hits, and the
+        Light objects' part of it (``lights`` made alike): ``reflected``
         but on the leaves of input triangles with covered cells (a floor a box rests on), whose
         light is made again at their open points (``Proximity.open_points``) by ``CONTACT_RAYS``
         cosine rays a leaf, with the direct part (emitters' light by the links, the outside
@@ -1167,7 +1182,7 @@ class HierarchicalRadiosity:
         nd, sc = self.nodes, self.scene
         rows = np.flatnonzero(self.contacts.covered[nd.root[self.leaf_ids]])
         if not len(rows):
-            return reflected
+            return reflected, lights
         ids = self.leaf_ids[rows]
         points, is_open = self.contacts.open_points(ids)
         share = is_open.mean(axis=1)
@@ -1191,16 +1206,17 @@ class HierarchicalRadiosity:
         direct = nd.E[ids] - sc.emission[nd.root[ids]]
         if sc.emission.max() > 0:
             direct = direct + nd.rho[ids] * np.einsum("i,lic->lc", quadratic.MEAN, self._emission_gather()[rows])
-        light = np.zeros((len(ids), 3))
-        light[some] = (direct[some] / share[some, None]
-                       + nd.rho[ids[some]] * gathered[some] / (m * m * is_open[some].sum(axis=1))[:, None])
-        out = reflected.copy()
+        light = np.zeros((len(ids), 6))                  # the light, then the Light objects' part
+        light[some, :3] = (direct[some] / share[some, None]
+                           + nd.rho[ids[some]] * gathered[some] / (m * m * is_open[some].sum(axis=1))[:, None])
+        light[some, 3:] = lights[rows[some]] / share[some, None]
         light, found = self._kin_mean(ids, share * nd.area[ids], light, some)
-        out[rows[found]] = light[found]
-        return out
+        out, out_lights = reflected.copy(), lights.copy()
+        out[rows[found]], out_lights[rows[found]] = light[found, :3], light[found, 3:]
+        return out, out_lights
 
     def _kin_mean(self, ids: np.ndarray, weight: np.ndarray, values: np.ndarray, known: np.ndarray):
-        """``values`` (m, 3) of leaves ``ids`` where ``known``, and elsewhere the ``weight``-ed
+        """``values`` (m, c) of leaves ``ids`` where ``known``, and elsewhere the ``weight``-ed
         mean of the known leaves under the nearest ancestor that has any (found: which have a
         value)."""
         nd = self.nodes
@@ -1216,7 +1232,7 @@ class HierarchicalRadiosity:
             w = np.where(real, weight, 0.0)
             total = np.bincount(key, weights=w)
             fill = ~found & real & (total[key] > 0)
-            for c in range(3):
+            for c in range(values.shape[1]):
                 values[fill, c] = np.bincount(key, weights=w * values[:, c])[key[fill]] / total[key[fill]]
             found |= fill
         return values, found
