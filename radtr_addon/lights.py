@@ -115,14 +115,20 @@ def _areas(tris: np.ndarray) -> np.ndarray:
 def _sample_points(light: Light, count: int) -> np.ndarray:
     """Deterministic points on the light's emitting surface (its centre when it has none)."""
     u, v = stratified(grid_side(count))
+    return _light_points(light, u, v, strata(len(u)))
+
+
+def _light_points(light: Light, u: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Points (k, 3) on the light's emitting surface from uniforms u, v (k,) (w (k,): which
+    triangle of an area light's fan, by area); its centre for each when it has none."""
     if light.kind == "AREA":
         tris = _fan(light.polygon())
         areas = _areas(tris)
-        pick = np.minimum(np.searchsorted(np.cumsum(areas) / areas.sum(), strata(len(u))), len(tris) - 1)
+        pick = np.minimum(np.searchsorted(np.cumsum(areas) / areas.sum(), w), len(tris) - 1)
         return triangle_points(tris[pick], u, v)
     if light.radius > 0 and light.kind in ("POINT", "SPOT"):
         return sphere_points(light.position, light.radius, u, v)
-    return light.position[None]
+    return np.repeat(light.position[None], len(u), axis=0)
 
 
 def spot_mask(light: Light, to_point: np.ndarray) -> np.ndarray:
@@ -148,29 +154,42 @@ def unoccluded(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndar
     return H * spot_mask(light, -u) if light.kind == "SPOT" else H
 
 
-def visibility(light: Light, points: np.ndarray, normals: np.ndarray, caster, samples: int) -> np.ndarray:
+def visibility(light: Light, points: np.ndarray, normals: np.ndarray, caster, samples: int,
+               uniforms: np.ndarray | None = None) -> np.ndarray:
     """Fraction (k,) of shadow rays from each point that reach the light, among the rays above
-    the point's horizon (the part of a light below it is already clipped from its form factor)."""
+    the point's horizon (the part of a light below it is already clipped from its form factor):
+    ``samples`` rays a point to the same points of the light, or with ``uniforms`` (k, 3) one
+    ray a point, to the point of the light that its own uniforms place (a ray below the
+    horizon counts as reaching it)."""
+    k = len(points)
     if light.kind == "SUN":
-        u, v = stratified(grid_side(samples if light.radius > 0 else 1))
-        dirs = cone_directions(-light.axis, light.radius / 2, u, v)
-        origins = np.repeat(points, len(dirs), axis=0)
-        d = np.tile(dirs, (len(points), 1))
+        if uniforms is None:
+            u, v = stratified(grid_side(samples if light.radius > 0 else 1))
+            dirs = cone_directions(-light.axis, light.radius / 2, u, v)
+            d = np.tile(dirs, (k, 1))
+        else:
+            d = cone_directions(-light.axis, light.radius / 2, uniforms[:, 0], uniforms[:, 1])
+        origins = np.repeat(points, len(d) // k, axis=0)
         clear = caster.reaches(origins + caster.epsilon * d, d)
     else:
-        targets = _sample_points(light, samples)
-        d = targets[None] - points[:, None]
-        d = (d / np.maximum(np.linalg.norm(d, axis=-1), 1e-300)[..., None]).reshape(-1, 3)
-        origins = np.repeat(points, len(targets), axis=0)
+        if uniforms is None:
+            targets = np.tile(_sample_points(light, samples), (k, 1))
+        else:
+            targets = _light_points(light, *uniforms.T)
+        origins = np.repeat(points, len(targets) // k, axis=0)
+        d = targets - origins
+        d = d / np.maximum(np.linalg.norm(d, axis=-1), 1e-300)[:, None]
         normal = None
         if light.kind == "AREA":
             t = _fan(light.polygon())[0]
             normal = np.cross(t[1] - t[0], t[2] - t[0])
             normal = normal / np.linalg.norm(normal)
-        clear = caster.clear_between(origins, np.tile(targets, (len(points), 1)), target_normals=normal)
-    above = (np.einsum("ij,ij->i", d, np.repeat(normals, len(d) // len(points), axis=0)) > 0)
-    seen = (clear & above).reshape(len(points), -1).sum(axis=1)
-    return seen / np.maximum(above.reshape(len(points), -1).sum(axis=1), 1)
+        clear = caster.clear_between(origins, targets, target_normals=normal)
+    above = (np.einsum("ij,ij->i", d, np.repeat(normals, len(d) // k, axis=0)) > 0)
+    if uniforms is not None:
+        return (clear | ~above).astype(float)
+    seen = (clear & above).reshape(k, -1).sum(axis=1)
+    return seen / np.maximum(above.reshape(k, -1).sum(axis=1), 1)
 
 
 #: Where a patch's irradiance is taken: the centroids of its four midpoint children
@@ -179,9 +198,11 @@ PATCH_POINTS = np.array([[4, 1, 1], [1, 4, 1], [1, 1, 4], [2, 2, 2]]) / 6.0
 
 
 def irradiance_at(points: np.ndarray, normals: np.ndarray, lights: list[Light], caster, *, samples: int = 16,
-                  cull: float = CULL) -> tuple[np.ndarray, np.ndarray]:
+                  cull: float = CULL, rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(H (k, 3), culled (k, 3)): the light of ``lights`` at points (already lifted off their
-    surface) facing unit ``normals``, and the unoccluded irradiance of the lights culled there."""
+    surface) facing unit ``normals``, and the unoccluded irradiance of the lights culled there.
+    With ``rng``: one shadow ray a point to each light, to a point of it drawn afresh for each
+    (``visibility``'s ``uniforms``): many such points average a light's penumbra."""
     H = np.zeros((len(points), 3))
     culled = np.zeros((len(points), 3))
     if not len(lights):
@@ -195,7 +216,8 @@ def irradiance_at(points: np.ndarray, normals: np.ndarray, lights: list[Light], 
         culled[skipped] += np.outer(raw[skipped], light.color)
         ids = np.flatnonzero(keep)
         if len(ids):
-            vis = visibility(light, points[ids], normals[ids], caster, samples)
+            drawn = None if rng is None else rng.random((len(ids), 3))
+            vis = visibility(light, points[ids], normals[ids], caster, samples, drawn)
             H[ids] += np.outer(raw[ids] * vis, light.color)
     return H, culled
 

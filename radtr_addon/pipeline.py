@@ -35,10 +35,6 @@ from .textures import varying_reflectance
 UNIFORM_ONLY = ("max_area", "levels", "method", "resolution", "rotate", "split", "split_level", "rays")
 #: Cosine rays per point (four an element) that sample the World in a hierarchical solve.
 SKY_RAYS = 64
-#: Shadow rays to each Light object at each point a final-gather ray hits (``direct_at``): a
-#: sun's one ray along its axis (a hard shadow), a lamp's from a point or two of it; the
-#: gather's own rays average them.
-HIT_LIGHT_SAMPLES = 1
 
 
 @dataclass
@@ -200,10 +196,12 @@ class Solve:
         split (``nodes.Nodes.init_light``). The light kept is drawn apart from it: an element
         kept because its alike rays all missed a window would keep their zero (a closed room
         lit through a window held 15-18% too little of its sky light).
-        ``external.direct_at(points, normals)``: the Light objects' irradiance (k, 3) at
-        points on a surface, by ``HIT_LIGHT_SAMPLES`` shadow rays to each light (None when
-        there are no Light objects): what a final-gather ray takes at the point it hits
-        (``solve.HierarchicalRadiosity._gather_batch``)."""
+        ``external.direct_at(points, normals, rng)``: the Light objects' irradiance (k, 3) at
+        points on a surface, by one shadow ray a point to each light, to a point of it that
+        ``rng`` draws (the gather's many rays average a penumbra; None when there are no
+        Light objects): what a final-gather ray takes at the point it hits
+        (``solve.HierarchicalRadiosity._gather_batch``; 4 rays a point gave the atrium the
+        same error, 3.85% per vertex against 3.87%, in 9 s more)."""
         from .formfactors.raycast import EmbreeRays
         from .lights import PATCH_POINTS, irradiance_at
         from .reconstruct import INSET
@@ -233,9 +231,8 @@ class Solve:
                     alike += sky_irradiance(part, sky, caster=caster, seed=next(calls), shared=k).reshape(H.shape)
             return (H, direct, alike) if spread else (H, direct)
 
-        def direct_at(points, normals):
-            return irradiance_at(points + caster.epsilon * normals, normals, lights, caster,
-                                 samples=HIT_LIGHT_SAMPLES)[0]
+        def direct_at(points, normals, rng):
+            return irradiance_at(points + caster.epsilon * normals, normals, lights, caster, rng=rng)[0]
 
         external.direct_at = direct_at if lights else None
         return external

@@ -79,8 +79,8 @@ class Nodes:
     ``E`` (exitance, own emission plus the reflected light of ``external``), ``H_ext``
     (irradiance from lights outside the solve), ``H_direct`` (the Light objects' part of it,
     which a final gather takes at the points it hits instead) and ``H_spread`` (how much rho
-    H_ext varies over the element, where it can split). Elements split at most ``max_level`` times below
-    their input triangle, and not below ``min_area`` (m^2).
+    H_ext varies over the element, where it can split). Elements split at most
+    ``max_level`` times below their input triangle, and not below ``min_area`` (m^2).
     """
 
     def __init__(self, scene: PatchScene, external, max_level: int, min_area: float):
@@ -207,9 +207,10 @@ class Nodes:
         return self.cluster[n] | ((self.level[n] < self.max_level) & (self.area[n] > 4 * self.min_area))
 
     def init_light(self, ids: np.ndarray):
-        """E, H_ext and H_spread of new elements ``ids``: emission plus the reflected external
-        light, its mean over points of each element, and its spread there (and at its
-        corners), the spread from samples drawn alike at those points and the mean from
+        """E, H_ext, H_direct and H_spread of new elements ``ids``: emission plus the reflected
+        external light, its mean over points of each element (and of its Light objects' part),
+        and its spread there (and at its corners), the spread from samples drawn alike at
+        those points and the mean from
         samples drawn apart from them (``external``'s ``spread``). The points are the
         centroids of the element's cells ``LIGHT_CELLS`` levels down (fewer on small ones), so
         a shadow that misses four points of a large input triangle still splits it. The
