@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .formfactors.closed_form import point_to_triangles
-from .sampling import cone_directions, cosine_directions, grid_side, sphere_points, strata, stratified, triangle_points
+from .sampling import cone_directions, cosine_directions, grid_side, sphere_points, stratified, triangle_points
 from .tolerances import CULL
 
 KINDS = ("POINT", "SPOT", "AREA", "SUN")
@@ -103,6 +103,10 @@ class Light:
         return factor * self.size_x * sy * world
 
 
+#: The golden ratio's fraction: a sequence (0.5 + k GOLDEN) mod 1 spreads evenly whatever its length.
+GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+
+
 def _fan(poly: np.ndarray) -> np.ndarray:
     return np.stack([np.broadcast_to(poly[0], (len(poly) - 2, 3)), poly[1:-1], poly[2:]], axis=1)
 
@@ -113,9 +117,12 @@ def _areas(tris: np.ndarray) -> np.ndarray:
 
 
 def _sample_points(light: Light, count: int) -> np.ndarray:
-    """Deterministic points on the light's emitting surface (its centre when it has none)."""
+    """Deterministic points on the light's emitting surface (its centre when it has none):
+    grid cells on a triangle of an area light's fan, the triangle picked by the golden-ratio
+    sequence (by the cells' order, as before, the cells near one fan triangle's apex went to
+    it and the far ones to the next: a 0.6 m square's points centred 4 cm off its centre)."""
     u, v = stratified(grid_side(count))
-    return _light_points(light, u, v, strata(len(u)))
+    return _light_points(light, u, v, (0.5 + np.arange(len(u)) * GOLDEN) % 1.0)
 
 
 def _light_points(light: Light, u: np.ndarray, v: np.ndarray, w: np.ndarray) -> np.ndarray:
