@@ -200,8 +200,8 @@ class Solve:
         points on a surface, by one shadow ray a point to each light, to a point of it that
         ``rng`` draws (the gather's many rays average a penumbra; None when there are no
         Light objects): what a final-gather ray takes at the point it hits
-        (``solve.HierarchicalRadiosity._gather_batch``; 4 rays a point gave the atrium the
-        same error, 3.85% per vertex against 3.87%, in 9 s more)."""
+        (``solve.HierarchicalRadiosity._gather_batch``; four fixed rays a point instead gave
+        the atrium the same error, 3.85% per vertex against 3.87%, in 9 s more)."""
         from .formfactors.raycast import EmbreeRays
         from .lights import PATCH_POINTS, irradiance_at
         from .reconstruct import INSET

@@ -86,13 +86,17 @@ def test_spot_cone_and_blend():
     assert band.any() and np.all((H[band] > 0) & (H[band] < point[band]))
 
 
-def test_shadows_hard_and_soft():
+def blocked_plane():
+    """``plane`` with a 1 x 1 m square blocker 0.5 m over its centre (its last two triangles)."""
     s = plane()
     blocker = np.array([[-0.5, -0.5, 0.5], [0.5, -0.5, 0.5], [0.5, 0.5, 0.5], [-0.5, 0.5, 0.5]])
-    v = np.vstack([s.vertices, blocker])
     n0 = len(s.vertices)
     t = np.vstack([s.triangles, [[n0, n0 + 1, n0 + 2], [n0, n0 + 2, n0 + 3]]])
-    scene = PatchScene(v, t, 0.5, 0.0, 0, 0)
+    return PatchScene(np.vstack([s.vertices, blocker]), t, 0.5, 0.0, 0, 0)
+
+
+def test_shadows_hard_and_soft():
+    scene = blocked_plane()
     hard = Light("p", "POINT", WHITE, 100.0, at([0, 0, 1.0]))
     H, _ = direct_irradiance(scene, [hard])
     r = np.abs(scene.centroids[:-2, :2]).max(axis=1)
@@ -119,12 +123,7 @@ def test_one_shadow_ray_a_point_drawn_afresh_averages_to_a_lights_penumbra(light
     from radtr_addon.formfactors.raycast import EmbreeRays
     from radtr_addon.lights import irradiance_at, unoccluded
 
-    s = plane()
-    blocker = np.array([[-0.5, -0.5, 0.5], [0.5, -0.5, 0.5], [0.5, 0.5, 0.5], [-0.5, 0.5, 0.5]])
-    v = np.vstack([s.vertices, blocker])
-    n0 = len(s.vertices)
-    scene = PatchScene(v, np.vstack([s.triangles, [[n0, n0 + 1, n0 + 2], [n0, n0 + 2, n0 + 3]]]), 0.5, 0.0, 0, 0)
-    caster = EmbreeRays(scene, 1)
+    caster = EmbreeRays(blocked_plane(), 1)
     k, many = 61, 8000
     points = np.column_stack([np.linspace(-1.5, 1.5, k), np.full(k, 0.1), np.full(k, 1e-4)])
     up = np.tile([0.0, 0.0, 1.0], (k, 1))

@@ -210,8 +210,8 @@ class Nodes:
         """E, H_ext, H_direct and H_spread of new elements ``ids``: emission plus the reflected
         external light, its mean over points of each element (and of its Light objects' part),
         and its spread there (and at its corners), the spread from samples drawn alike at
-        those points and the mean from
-        samples drawn apart from them (``external``'s ``spread``). The points are the
+        those points and the mean from samples drawn apart from them (``external``'s
+        ``spread``). The points are the
         centroids of the element's cells ``LIGHT_CELLS`` levels down (fewer on small ones), so
         a shadow that misses four points of a large input triangle still splits it. The
         spread only decides splits: elements that cannot split take the mean alone, at a
