@@ -13,7 +13,7 @@ from bpy.props import (
 
 from .radtr_addon.hierarchical.solve import GATHER_ADAPTIVE
 from .radtr_addon.lowrank.backends import BACKENDS, DEFAULT_BACKEND
-from .radtr_addon.settings import AUTO_GATHER_RAYS, Settings
+from .radtr_addon.settings import AUTO_GATHER_RAYS, Settings, auto_gather_rays
 
 _D = Settings()
 
@@ -119,7 +119,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                     "(sharper corners and shadows); 0 shows the mean of the patches around each vertex "
                     f"(hierarchical: each leaf's quadratic; from {GATHER_ADAPTIVE} rays the count is a mean, "
                     "more where the light is noisier); -1 is auto: "
-                    f"{AUTO_GATHER_RAYS} with the hierarchical solver, 0 with the others")
+                    f"{AUTO_GATHER_RAYS} with the hierarchical solver ({auto_gather_rays(1.0)} at Quality 1), "
+                    "0 with the others")
     lowrank_level: IntProperty(
         name="Low-Rank Level", default=1, min=0, max=12,
         description="Hierarchy level whose nodes are the flashlight's clusters: finer is more exact, "

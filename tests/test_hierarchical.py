@@ -835,7 +835,7 @@ def test_a_hierarchical_solve_names_what_it_does_not_use_and_back_to_back_faces(
                                              gather_rays=200), log=lambda *_: None)
     assert any(w.endswith("max_area, method not used") for w in told.stats.warnings)
     assert any(w.endswith("200 a vertex are cast as 196 (14 x 14)") for w in told.stats.warnings)
-    assert not any("square grid" in w for w in quiet.stats.warnings)          # auto: 256, a square
+    assert not any("square grid" in w for w in quiet.stats.warnings)          # auto: a square
 
 
 def test_the_light_at_the_vertices_is_the_last_phase_with_its_progress(monkeypatch):
@@ -866,7 +866,7 @@ def test_the_light_at_the_vertices_is_the_last_phase_with_its_progress(monkeypat
         pass
     fractions = [f for f, _ in seen]
     assert len(seen) > 5 and np.all(np.diff(fractions) > 0) and fractions[0] < 0.5 and fractions[-1] == pytest.approx(1)
-    start = "light at the result vertices (final gather, 256 rays a vertex on average): "
+    start = f"light at the result vertices (final gather, {job.settings.vertex_gather} rays a vertex on average): "
     assert all(r.startswith(start) for _, r in seen)
     made = job.solver.stage_seconds["vertices"]
     job.finish()
@@ -1121,6 +1121,45 @@ def test_source_term_compiled_equals_numpy_form(monkeypatch, tiled_room):
         assert got.max() > 0 and np.allclose(got, ref, rtol=1e-12, atol=0)
 
 
+def test_gather_products_compiled_equal_scipys(monkeypatch, tiled_room):
+    """A sweep's gather (``_gather``: the links into elements, ``G``, and the small clusters'
+    sent light, ``ClusterMaps.sent``) by the compiled CSR product on every core equals it by
+    scipy's, on the tiled room with boxes; and the product equals scipy's for int32 and
+    int64 indices alike (the two index types scipy keeps)."""
+    from scipy.sparse import random as sparse_random
+
+    from radtr_addon import compiled
+    from radtr_addon.hierarchical.solve import times
+
+    if compiled.kernel("csr_times") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    hr = tiled_room
+    assert len(hr._cluster_maps().taking()) > 0 and hr._cluster_maps().blocks[0][1].nnz > 0
+    got = hr._gather(hr.leaf_ids, hr._push_plan())
+    with monkeypatch.context() as m:
+        m.setattr(compiled, "kernel", lambda name: None)
+        ref = hr._gather(hr.leaf_ids, hr._push_plan())
+    assert got.max() > 0 and np.allclose(got, ref, rtol=1e-12, atol=1e-15 * ref.max())
+    A = sparse_random(300, 200, density=0.05, format="csr", random_state=1)
+    x = np.random.default_rng(1).random((200, 3))
+    for index in (np.int32, np.int64):
+        A.indices, A.indptr = A.indices.astype(index), A.indptr.astype(index)
+        np.testing.assert_allclose(times(A, x), A @ x, rtol=1e-12)
+
+
+def test_ray_stats_equal_numpys_mean_and_variance():
+    """The final gather's per-point mean and variance by matrix products (``ray_stats``) equal
+    numpy's mean, its variance of the rays, and the paired variance written out."""
+    from radtr_addon.hierarchical.solve import ray_stats
+
+    got = np.random.default_rng(2).random((50, 16, 3))
+    H, var = ray_stats(got, paired=False)
+    np.testing.assert_allclose(H, got.mean(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(var, got.var(axis=1, ddof=1) / 16, rtol=1e-10)
+    _, var = ray_stats(got, paired=True)
+    np.testing.assert_allclose(var, ((got[:, 0::2] - got[:, 1::2]) ** 2).sum(axis=1) / 16 ** 2, rtol=1e-10)
+
+
 def test_hashed_points_compiled_equal_numpy_hash():
     """The compiled hash that places a cluster map entry's shadow ray (``kernels._splitmix``)
     draws the same uniforms as ``sampling.hashed_uniforms``, bit for bit, for keys up to
@@ -1233,7 +1272,7 @@ def test_a_final_gather_takes_a_suns_shadow_where_its_rays_land_not_the_leafs_me
     sun = Light("sun", "SUN", np.ones(3), 0.5)                                # shines down -z
     monkeypatch.setattr(hierarchical, "HierarchicalSettings", partial(hierarchical.HierarchicalSettings, max_level=0))
     job = Solve(SceneInput(build([([floor], 0.5, 0.0), ([plate], 0.0, 0.0), ([card], 0.5, 0.0)]), lights=[sun]),
-                Settings(solver="hierarchical", quality=1.0), log=lambda *_: None).run().finish()
+                Settings(solver="hierarchical", quality=1.0, gather_rays=256), log=lambda *_: None).run().finish()
     leaves = job.adaptive.leaves
     assert (leaves.object_index == 0).sum() == 2                              # the floor was not split
     part = mesh_part(leaves, np.flatnonzero(leaves.object_index == 2))

@@ -3,7 +3,7 @@
 For the bundled ``cornell_box``, ``furnished_room`` and, without ``--quick``, the large
 ``atrium`` (``LARGE``: hierarchical only, at one Quality) and each configuration (uniform
 Embree patches with Jacobi at two patch counts; hierarchical at several Quality values, each
-with its default final gather, ``settings.AUTO_GATHER_RAYS``):
+with its default final gather, ``settings.auto_gather_rays``):
 a solve as a user runs it (``pipeline.solve``, result meshes written), then Cycles baked at
 the vertices of those result meshes (emitters left out) as the reference, each object at
 the samples its mean needs (``reference_bake``; at least ``REFERENCE_SPP``, 256 with
