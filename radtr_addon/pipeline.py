@@ -391,7 +391,14 @@ class Solve:
         if r.method == "hierarchical":
             inst += f" ({self.adaptive.links:,} links, {len(self.adaptive.rounds)} rounds)"
         return (f"{self.stats.patches:,} patches{inst}, {r.method} {r.iterations:,} {unit}, residual {r.residual:.2e}, "
-                f"{state}; {r.books()}; energy balance error {r.balance_error():.1e}")
+                f"{state}; {r.books(self._outside_source())}; energy balance error {r.balance_error():.1e}")
+
+    def _outside_source(self) -> str:
+        """What the books' emitted power counts besides the emitters: the Light objects' and
+        the World's light reflected once (a scene lit by a sun alone "emits" that)."""
+        outside = [name for name, there in (("Light objects", self.input.lights),
+                                            ("World", self.input.world is not None)) if there]
+        return f", with the {' and the '.join(outside)} reflected once" if outside else ""
 
 
 def solve(scene_input: SceneInput, settings: Settings, log=print, progress=None) -> Solve:

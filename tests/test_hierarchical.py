@@ -1147,6 +1147,43 @@ def test_gather_products_compiled_equal_scipys(monkeypatch, tiled_room):
         np.testing.assert_allclose(times(A, x), A @ x, rtol=1e-12)
 
 
+def test_cluster_link_rays_compiled_equal_numpy_form(monkeypatch, tiled_room):
+    """The rays between random points of a cluster link's ends (``Evaluator._visible_between``:
+    points, kernel weights and the clear rays in one compiled pass, ``pair_rays``) equal
+    numpy's form on the tiled room's links with a cluster end, both ways of linking
+    (cluster-cluster, cluster-element), and their visibility is the same; some rays weigh
+    nothing (a member facing away) and some are blocked (a box in the way)."""
+    from radtr_addon import compiled
+
+    if compiled.kernel("pair_rays") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    hr = tiled_room
+    nd, ev, L = hr.nodes, hr.evaluator, hr.links
+    pick = np.flatnonzero(nd.cluster[L.src] | nd.cluster[L.rcv])[:3000]
+    s, r = L.src[pick], L.rcv[pick]
+    assert (nd.cluster[s] & nd.cluster[r]).any() and (nd.cluster[s] != nd.cluster[r]).any()
+    us, ur = np.random.default_rng(5).random((2, len(s), 16, 3))
+    got = compiled.kernel("pair_rays")(s, r, us, ur, nd.cluster, ev.span, ev.cum_area, nd.order, nd.tri,
+                                       nd.normal, ev.corners, nd.scene.normals, ev.caster.epsilon)
+    with monkeypatch.context() as m:
+        m.setattr(compiled, "kernel", lambda name: None)
+        ref = ev._pair_rays(s, r, us, ur)
+    w = ref[3]
+    assert (w == 0).any() and (w > 0).mean() > 0.2
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+    rng = ev.rng
+    V = []
+    for kernels in (compiled.kernel, lambda name: None):
+        with monkeypatch.context() as m:
+            m.setattr(compiled, "kernel", kernels)
+            ev.rng = np.random.default_rng(7)
+            V.append(ev._visible_between(s, r))
+    ev.rng = rng
+    np.testing.assert_allclose(V[0], V[1], rtol=1e-9)
+    assert (V[0] < 1).any() and (V[0] > 0).any()
+
+
 def test_ray_stats_equal_numpys_mean_and_variance():
     """The final gather's per-point mean and variance by matrix products (``ray_stats``) equal
     numpy's mean, its variance of the rays, and the paired variance written out."""

@@ -189,7 +189,8 @@ def test_emitter_back_lights_what_is_behind_it_like_cycles(blend, two_sided):
 
 def test_a_hierarchical_solve_lit_only_by_a_sun(blend):
     """No emitting material, only a Light object: the hierarchical solve takes it (it used to
-    refuse the scene as unlit) and the plane gets rho S cos / pi."""
+    refuse the scene as unlit) and the plane gets rho S cos / pi; the summary's emitted power
+    is the sun's light reflected once, and says so (a sunlit scene with no emitter "emitted")."""
     bpy = blend
     add_plane(bpy)
     props = dict(LIGHTS["SUN"])
@@ -198,6 +199,7 @@ def test_a_hierarchical_solve_lit_only_by_a_sun(blend):
     B = job.result.B
     np.testing.assert_allclose(B / np.pi, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * 2.0 * math.cos(math.radians(25))
                                                           / np.pi, B.shape), rtol=1e-6)
+    assert "W (R, G, B), with the Light objects reflected once: absorbed" in job.summary()
 
 
 def test_hierarchical_vertex_colours_take_a_sun_at_the_vertex(blend):

@@ -371,19 +371,37 @@ class Evaluator:
         cosines, not by its own shadow). Weighted by cos cos alone, the parts of a cluster
         nearest the receiver counted too little: a stack of slats lit on its lowest, whose
         upper slats' edges nearest the floor peek past it, gave the floor 6% too little."""
-        m = CLUSTER_RAYS
-        a, na = self.points_on(s, self.rng.random((len(s), m, 3)))
-        b, nb = self.points_on(r, self.rng.random((len(r), m, 3)))
-        d = b - a
-        dist = np.linalg.norm(d, axis=-1)
-        d = d / np.maximum(dist, 1e-300)[..., None]
-        w = np.maximum(np.einsum("lmc,lmc->lm", na, d), 0) * np.maximum(-np.einsum("lmc,lmc->lm", nb, d), 0)
-        w /= np.maximum(dist, 1e-300) ** 2
+        m, nd = CLUSTER_RAYS, self.nodes
+        us, ur = self.rng.random((len(s), m, 3)), self.rng.random((len(r), m, 3))
+        kernel = compiled.kernel("pair_rays")
+        if kernel is not None:
+            origin, direction, length, w = kernel(s, r, us, ur, nd.cluster, self.span, self.cum_area, nd.order,
+                                                  nd.tri, nd.normal, self.corners, nd.scene.normals,
+                                                  self.caster.epsilon)
+        else:
+            origin, direction, length, w = self._pair_rays(s, r, us, ur)
         li, mi = np.nonzero(w > 0)
         ok = np.zeros(w.shape)
-        ok[li, mi] = self.caster.clear_between(a[li, mi], b[li, mi], na[li, mi], nb[li, mi])
+        ok[li, mi] = self.caster.reaches(origin[li, mi], direction[li, mi], length[li, mi])
         total = w.sum(axis=1)
         return np.where(total > 0, (w * ok).sum(axis=1) / np.maximum(total, 1e-300), 0.0)
+
+    def _pair_rays(self, s: np.ndarray, r: np.ndarray, us: np.ndarray, ur: np.ndarray):
+        """Numpy's form of ``compiled.kernels.pair_rays``: the points that uniforms ``us``, ``ur``
+        (L, m, 3) place on the ends, their kernel cos cos / d^2 (L, m), and where it is
+        positive the ray between them (origins, directions (L, m, 3), lengths (L, m))."""
+        a, na = self.points_on(s, us)
+        b, nb = self.points_on(r, ur)
+        d = b - a
+        dist = np.maximum(np.linalg.norm(d, axis=-1), 1e-300)
+        d = d / dist[..., None]
+        w = np.maximum(np.einsum("lmc,lmc->lm", na, d), 0) * np.maximum(-np.einsum("lmc,lmc->lm", nb, d), 0)
+        w /= dist ** 2
+        origin, direction, length = np.zeros(a.shape), np.zeros(a.shape), np.zeros(w.shape)
+        li, mi = np.nonzero(w > 0)
+        origin[li, mi], direction[li, mi], length[li, mi] = clear_rays(a[li, mi], b[li, mi], na[li, mi],
+                                                                       nb[li, mi], self.caster.epsilon)
+        return origin, direction, length, w
 
 
 def shadow_rays(x, n_r, tri, n_s, u, v, eps):
