@@ -286,5 +286,5 @@ def sky_irradiance(scene, radiance, rays: int = 64, seed: int = 0, caster=None, 
         dirs = cosine_directions(u, v, n).reshape(-1, 3)
         origins = np.repeat(scene.centroids[ids] + caster.epsilon * n, m2, axis=0)
         L = radiance(dirs) * caster.reaches(origins, dirs)[:, None]
-        H[ids] = np.pi * L.reshape(len(ids), m2, 3).mean(axis=1)
+        H[ids] = np.pi / m2 * (np.ones(m2) @ L.reshape(len(ids), m2, 3))      # the mean (numpy's: 4x slower)
     return H

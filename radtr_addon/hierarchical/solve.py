@@ -1306,7 +1306,8 @@ class HierarchicalRadiosity:
         rows = hot[k].ravel()
         shaped = light_shape(seen.H6[rows], lam, seen.flat[rows]).reshape(*k.shape, 3)
         each = weight[..., None] * seen.light[hot][k] * shaped
-        return each.sum(axis=1), samples * each.var(axis=1, ddof=1 if samples > 1 else 0)
+        mean, var = ray_stats(each, paired=False)
+        return samples * mean, samples ** 2 * var
 
     def _result_mesh(self):
         """The shown leaves cut at their T-vertices (``conforming``; a leaf with a T-vertex on
