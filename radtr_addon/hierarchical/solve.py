@@ -88,11 +88,6 @@ HOT_SHARE = 1 / 8
 BOOKS_RHO = 0.1
 #: Share of epsilon that a partly seen source's spread may bring its link (``_leaks``).
 LEAK_SHARE = 0.1
-#: Residual at which a round's solve stops when another round may follow (or the tolerance,
-#: the larger): its B only guides the next refine, and the last solve goes on to the
-#: tolerance from there (``step``). Not looser: Jacobi climbs to B from below, and at 1e-2
-#: the refine of a lit room with a box saw too little light and kept 5% fewer leaves.
-ROUND_TOLERANCE = 1e-3
 #: Candidate links evaluated per slice of a refine (``refine``).
 REFINE_CHUNK = 500_000
 #: Elements split (and their outside light sampled) per slice of ``refine_lights``.
@@ -536,7 +531,6 @@ class HierarchicalRadiosity:
                    self.contacts.gap_share(nd.element_root))
         self.links = Links.empty()
         self.sweeps, self.history, self.times = 0, [], []
-        self._loose = False                 # the last solve stopped short of the tolerance
         self.rounds: list[dict] = []
         self.stage_seconds = {"clusters": time.perf_counter() - t0, "refine": 0.0, "solve": 0.0}
         self.done = False
@@ -884,13 +878,10 @@ class HierarchicalRadiosity:
             H[ids] += np.einsum("sij,sjc->sic", quadratic.PUSH[slot], H[par])
         return H[leaves]
 
-    def solve(self, cancel=None, tolerance: float | None = None):
-        """Jacobi sweeps with push-pull until the residual power is below ``tolerance`` (None:
-        the settings' own)."""
+    def solve(self, cancel=None):
+        """Jacobi sweeps with push-pull until the residual power is below the tolerance."""
         t0 = time.perf_counter()
         nd, s = self.nodes, self.settings
-        tolerance = s.tolerance if tolerance is None else tolerance
-        self._loose = tolerance > s.tolerance
         leaves = nd.leaves()
         anc, plan = self._ancestors(leaves), self._push_plan()
         E, rho, A = nd.E[leaves], nd.rho[leaves], nd.area[leaves]
@@ -906,7 +897,7 @@ class HierarchicalRadiosity:
             self.sweeps += 1
             self.history.append(residual)
             self.times.append(time.perf_counter() - self._t_start)
-            if residual <= tolerance:
+            if residual <= s.tolerance:
                 break
             if cancel is not None and cancel():
                 raise Cancelled("solve cancelled; nothing was changed")
@@ -970,10 +961,7 @@ class HierarchicalRadiosity:
             self.links, refined = stop.value
             self._round = None
         self.stage_seconds["refine"] += time.perf_counter() - t0
-        last = len(self.rounds) + 1 >= self.settings.max_rounds
         if refined or not self.rounds:
-            self.solve(cancel, None if last else max(ROUND_TOLERANCE, self.settings.tolerance))
-        elif self._loose:                                        # no more rounds: on to the tolerance
             self.solve(cancel)
         self.rounds.append({"round": len(self.rounds), "links": len(self.links), "refined": refined,
                             "leaves": int(len(self.leaf_ids)), "sweeps": self.sweeps,
