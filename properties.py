@@ -119,8 +119,8 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                     "(sharper corners and shadows); 0 shows the mean of the patches around each vertex "
                     f"(hierarchical: each leaf's quadratic; from {GATHER_ADAPTIVE} rays the count is a mean, "
                     "more where the light is noisier); -1 is auto: "
-                    f"{AUTO_GATHER_RAYS} with the hierarchical solver ({auto_gather_rays(1.0)} at Quality 1), "
-                    "0 with the others")
+                    f"{AUTO_GATHER_RAYS} with the hierarchical solver up to Quality 0.1, fewer coarser "
+                    f"({auto_gather_rays(1.0)} at 1), 0 with the others")
     lowrank_level: IntProperty(
         name="Low-Rank Level", default=1, min=0, max=12,
         description="Hierarchy level whose nodes are the flashlight's clusters: finer is more exact, "

@@ -394,11 +394,13 @@ class Solve:
                 f"{state}; {r.books(self._outside_source())}; energy balance error {r.balance_error():.1e}")
 
     def _outside_source(self) -> str:
-        """What the books' emitted power counts besides the emitters: the Light objects' and
-        the World's light reflected once (a scene lit by a sun alone "emits" that)."""
-        outside = [name for name, there in (("Light objects", self.input.lights),
-                                            ("World", self.input.world is not None)) if there]
-        return f", with the {' and the '.join(outside)} reflected once" if outside else ""
+        """What the books' emitted power counts besides the emitters: the light of the Light
+        objects, the World and the research sky, reflected once (a scene lit by a sun alone
+        "emits" that, and of a 100 W lamp what its first bounce reflects)."""
+        outside = [name for name, there in (("the Light objects'", self.input.lights),
+                                            ("the World's", self.input.world is not None),
+                                            ("the research sky's", self.settings.sky != "none")) if there]
+        return f"; {' and '.join(outside)} light counted once reflected" if outside else ""
 
 
 def solve(scene_input: SceneInput, settings: Settings, log=print, progress=None) -> Solve:

@@ -32,7 +32,7 @@ def auto_gather_rays(quality: float) -> int:
     decade to 1 (144 there), where the links' own error is as large as the gather's noise
     (the atrium at Quality 1.0 against Cycles: 4.05% per vertex at 128 rays in 35 s, 3.88%
     at 256 in 54 s); a square, the stratified grid a vertex's rays are cast on."""
-    side = np.sqrt(AUTO_GATHER_RAYS) * min(1.0, (0.1 / quality) ** (np.log10(2) / 2))
+    side = np.sqrt(AUTO_GATHER_RAYS) * min(1.0, (0.1 / max(quality, 1e-4)) ** (np.log10(2) / 2))
     return int(np.ceil(side - 1e-9)) ** 2
 
 #: Peak bytes per Embree ray in flight (a form-factor row or a vertex gather; measured).
@@ -78,8 +78,8 @@ class Settings:
     precision: str = option("float64", "accumulation precision", PRECISIONS)
     ambient: bool = option(False, "shooting: show unshot light as Cohen's ambient term")
     gather_rays: int = option(-1, "final gather of the vertex colours with this many rays per vertex "
-                                  f"(-1: auto, {AUTO_GATHER_RAYS} with hierarchical, {auto_gather_rays(1.0)} "
-                                  "at Quality 1, none otherwise; with "
+                                  f"(-1: auto, {AUTO_GATHER_RAYS} with hierarchical up to Quality 0.1, fewer "
+                                  f"coarser ({auto_gather_rays(1.0)} at 1), none otherwise; with "
                                   "hierarchical a mean, more where the light is noisier; "
                                   "0: none, the patch mean, or with hierarchical each leaf's quadratic)")
     sky: str = option("none", "apply a research sky through sky form factors", SKIES)

@@ -1145,6 +1145,8 @@ def test_gather_products_compiled_equal_scipys(monkeypatch, tiled_room):
     for index in (np.int32, np.int64):
         A.indices, A.indptr = A.indices.astype(index), A.indptr.astype(index)
         np.testing.assert_allclose(times(A, x), A @ x, rtol=1e-12)
+    with pytest.raises(ValueError, match="CSR matrix times x"):           # the kernel checks no bounds
+        times(A, x[:10])
 
 
 def test_cluster_link_rays_compiled_equal_numpy_form(monkeypatch, tiled_room):

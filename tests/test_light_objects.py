@@ -199,7 +199,7 @@ def test_a_hierarchical_solve_lit_only_by_a_sun(blend):
     B = job.result.B
     np.testing.assert_allclose(B / np.pi, np.broadcast_to(np.array([0.8, 0.6, 0.4]) * 2.0 * math.cos(math.radians(25))
                                                           / np.pi, B.shape), rtol=1e-6)
-    assert "W (R, G, B), with the Light objects reflected once: absorbed" in job.summary()
+    assert "W (R, G, B; the Light objects' light counted once reflected): absorbed" in job.summary()
 
 
 def test_hierarchical_vertex_colours_take_a_sun_at_the_vertex(blend):

@@ -550,9 +550,10 @@ def _csr_times(indptr, indices, data, x, out):
 
 def csr_times(indptr, indices, data, x):
     """A CSR matrix (``indptr``, ``indices``, ``data``) times x (n, c), its rows shared over
-    the cores (scipy's product runs on one: 16 s of a large scene's solve). Its index
-    arrays are taken as scipy keeps them, int32 or int64 (a copy of tens of millions of
-    indices a product would cost more than it saves)."""
+    the cores (scipy's product runs on one: 16 s of a large scene's solve). No bounds are
+    checked (``hierarchical.solve.times`` checks the shapes). The index arrays are taken as
+    scipy keeps them, int32 or int64: converting tens of millions of indices at every
+    product would cost more than the product saves."""
     x = _reals(x)
     if x.ndim != 2:
         raise ValueError(f"x must be (n, c), not {x.shape}")

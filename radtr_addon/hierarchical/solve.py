@@ -188,7 +188,10 @@ class ClusterMaps:
 
 def times(A, x: np.ndarray) -> np.ndarray:
     """CSR matrix ``A`` times x (n, c): on every core where numba builds
-    (``compiled.kernels.csr_times``), else scipy's."""
+    (``compiled.kernels.csr_times``, which checks no bounds: the shapes are checked here),
+    else scipy's."""
+    if A.format != "csr" or A.shape[1] != len(x):
+        raise ValueError(f"a CSR matrix times x: got {A.format} {A.shape} times {np.shape(x)}")
     kernel = compiled.kernel("csr_times")
     return kernel(A.indptr, A.indices, A.data, x) if kernel is not None else np.asarray(A @ x)
 
@@ -434,8 +437,8 @@ class GatherTargets:
 
 def ray_stats(got: np.ndarray, paired: bool) -> tuple[np.ndarray, np.ndarray]:
     """The mean (k, 3) of each point's rays ``got`` (k, rays, 3) and its variance (k, 3): by
-    pairs of rays next to each other (``paired``: the strata collapsed in twos), else by the
-    rays' spread. By matrix products, not numpy's reductions over the middle axis, which
+    pairs of rays next to each other (``paired``, for an even count: the strata collapsed in
+    twos), else by the rays' spread. By matrix products, not numpy's reductions over the middle axis, which
     took 4-14x as long (6 s of a large scene's final gather)."""
     rays = got.shape[1]
     H = np.ones(rays) @ got / rays

@@ -48,8 +48,8 @@ class SolveResult:
         """The power emitted per channel, and where it went as shares of it (channels
         summed): a loss shows in ``escaped`` (light that left the scene, or that the
         hierarchical links lost). ``source``: what else the emitted power counts, said
-        after it (the Light objects' and the World's light, which joins the emission once
-        reflected)."""
+        beside its channels (the Light objects' and the World's light, which joins the
+        emission once reflected)."""
         total = float(self.emitted.sum())
         if total <= 0:
             return "no light emitted"
@@ -57,7 +57,7 @@ class SolveResult:
         shares = ", ".join(f"{name} {round(float(v.sum()) / total, 3) + 0.0:.1%}" for name, v in parts.items()
                            if name != "unshot" or v.sum() > 0)             # + 0.0: no "-0.0%"
         watts = ", ".join(f"{float(w):.4g}" for w in self.emitted)
-        return f"emitted {watts} W (R, G, B){source}: {shares}"
+        return f"emitted {watts} W (R, G, B{source}): {shares}"
 
     def display(self, rho: np.ndarray) -> np.ndarray:
         """B plus the ambient term rho x ambient (after Cohen et al. 1988), for showing partial solves."""
