@@ -65,11 +65,12 @@ CLUSTER_RAYS = 16
 #: Links evaluated per numpy batch (bounds the temporary memory).
 BATCH = 20_000
 #: Links whose ends hold at most this many triangle pairs are first tested pair by pair for
-#: whether any two of their triangles face each other (``Evaluator.facing``): numpy's form
-#: holds every pair of a batch at once, the compiled one stops at the first facing pair.
-FACING_PAIRS = 16
-#: The same where the compiled test runs (``compiled.kernels.facing``).
-FACING_PAIRS_COMPILED = 4096
+#: whether any two of their triangles face each other (``Evaluator.facing``), alike in the
+#: compiled form (which stops at the first facing pair) and numpy's, so that both keep the
+#: same links.
+FACING_PAIRS = 4096
+#: Triangle pairs numpy's form of ``facing`` holds at once (about 300 bytes each).
+FACING_CHUNK = 250_000
 
 
 @dataclass
@@ -187,30 +188,37 @@ class Evaluator:
         one wholly behind (or in) the other's plane (neighbours on a floor, round a column,
         on the two faces of a slab; about four in five of the atrium's triangle pairs whose
         bounding spheres overlap). Tested only where the ends hold at most ``FACING_PAIRS``
-        triangle pairs (``FACING_PAIRS_COMPILED`` where numba builds: a fifth of the
-        atrium's near cluster links of 17-4,096 pairs turned out to face away, and each
-        such link had been split down to 16 pairs first); True for the rest."""
+        triangle pairs (a fifth of the atrium's near cluster links of 17-4,096 pairs turned
+        out to face away, and each such link had been split down to 16 pairs first); True
+        for the rest."""
         out = np.ones(len(s), bool)
         cs, cr = self.size(s), self.size(r)
         nd, tol = self.nodes, self.caster.epsilon
+        small = np.flatnonzero(cs * cr <= FACING_PAIRS)
         kernel = compiled.kernel("facing")
-        small = np.flatnonzero(cs * cr <= (FACING_PAIRS if kernel is None else FACING_PAIRS_COMPILED))
-        if not len(small):
-            return out
-        if kernel is not None:
+        if kernel is not None and len(small):
             out[small] = kernel(s[small], r[small], nd.cluster, self.span, nd.order, nd.tri, nd.normal,
                                 self.corners, nd.scene.normals, nd.lo, nd.hi, tol)
             return out
-        cs, cr = cs[small], cr[small]
-        ts, ns = self._members(s[small], cs)
-        tr, nr = self._members(r[small], cr)
-        link, k = ranges(np.zeros(len(small), np.int64), cs * cr)
+        pairs = np.cumsum(cs[small] * cr[small])
+        while len(small):
+            part = small[:max(int(np.searchsorted(pairs, FACING_CHUNK, side="right")), 1)]
+            out[part] = self._facing_pairs(s[part], r[part], cs[part], cr[part])
+            small, pairs = small[len(part):], pairs[len(part):] - pairs[len(part) - 1]
+        return out
+
+    def _facing_pairs(self, s: np.ndarray, r: np.ndarray, cs: np.ndarray, cr: np.ndarray) -> np.ndarray:
+        """Numpy's form of ``compiled.kernels.facing`` for links (s, r) whose ends hold cs and cr
+        triangles: every pair of their triangles at once."""
+        tol = self.caster.epsilon
+        ts, ns = self._members(s, cs)
+        tr, nr = self._members(r, cr)
+        link, k = ranges(np.zeros(len(s), np.int64), cs * cr)
         i = (np.cumsum(cs) - cs)[link] + k // cr[link]
         j = (np.cumsum(cr) - cr)[link] + k % cr[link]
         a = np.einsum("mc,mkc->mk", ns[i], tr[j] - ts[i, :1]).max(axis=1) > tol
         b = np.einsum("mc,mkc->mk", nr[j], ts[i] - tr[j, :1]).max(axis=1) > tol
-        out[small] = np.bincount(link, weights=a & b, minlength=len(small)) > 0
-        return out
+        return np.bincount(link, weights=a & b, minlength=len(s)) > 0
 
     def _elements(self, s: np.ndarray, r: np.ndarray) -> Links:
         nd = self.nodes
