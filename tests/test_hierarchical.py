@@ -786,6 +786,32 @@ def test_a_whole_solve_without_numba_equals_the_compiled_one(monkeypatch):
     assert np.abs(B - B_np).max() < 1e-12 * B.max() and B.max() > 0
 
 
+def test_books_overdrawn_at_a_coarse_quality_are_warned_of():
+    """A closed 2 m room (rho 0.8) lit by a lamp 1 cm under its ceiling: at Quality 1.0 its
+    coarse cluster links bring the surfaces 20% more light than they send, and the solve says
+    so, with that share and a finer Quality to try; at 0.1 the books are within 1% of
+    balance on that side (what they lose is the light the lamp's back blocks) and nothing is
+    said."""
+    from radtr_addon.pipeline import SceneInput, Solve
+    from radtr_addon.settings import Settings
+
+    room = [[a, a + u, a + u + v, a + v] for a, u, v in
+            (map(np.array, f) for f in closed_box((0, 0, 0), (2, 2, 2), inward=True))]
+    lamp = [(0.2, 0.2, 1.99), (0.2, 0.6, 1.99), (0.6, 0.6, 1.99), (0.6, 0.2, 1.99)]        # facing down
+    scene = build([(room, 0.8, 0.0), ([lamp], 0.0, 5.0)])
+    for quality in (1.0, 0.1):
+        job = Solve(SceneInput(scene), Settings(solver="hierarchical", quality=quality, gather_rays=0),
+                    log=lambda *_: None).run().finish()
+        r = job.result
+        over = float(-(r.escaped / r.emitted).min())
+        said = [w for w in job.stats.warnings if "more than they send" in w]
+        if quality == 1.0:
+            assert over > 0.1 and len(said) == 1
+            assert f"{over:.1%}" in said[0] and "Quality (say 0.33)" in said[0]
+        else:
+            assert over < 0.01 and not said
+
+
 def test_elements_that_cannot_split_take_the_outside_lights_mean_alone():
     """The outside light's spread over an element only decides whether it splits: with the
     least area above every triangle's, nothing can split and the spread is left at 0, and
