@@ -442,19 +442,76 @@ def test_cluster_maps_carried_over_rounds_equal_maps_made_afresh(monkeypatch):
         assert abs(M[np.argsort(ends)] - F[np.argsort(f_ends)]).max() < 1e-12
 
 
-def test_a_closed_room_keeps_its_light_through_cluster_links():
-    """A closed grey room of 4 x 4 tiles a face lit by one ceiling tile, nothing in it: every
-    watt that leaves a surface lands on one (escaped under 1% of the emitted), though a
-    tenth of the links have a cluster end. Read from a table of 42 directions, each end of
-    such a link saw a face head-on as cos 18 degrees of itself (4.3% lost); with each
-    triangle's own cosine but the point-to-point kernel 1 / (pi d^2), 2.7% was gained."""
+@pytest.fixture(scope="module")
+def lit_room():
+    """A closed grey room of 4 x 4 tiles a face lit by one ceiling tile, nothing in it, at
+    Quality 0.1."""
     room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 4)]
     lamp = [q for q in room if np.allclose(np.mean(q, axis=0), (1.5, 1.5, 2.5))]
     room = [q for q in room if q is not lamp[0]]
-    hr, r = run(build([(room, 0.7, 0.0), (lamp, 0.7, 20 * np.pi)]), quality=0.1)
+    return run(build([(room, 0.7, 0.0), (lamp, 0.7, 20 * np.pi)]), quality=0.1)
+
+
+def test_a_closed_room_keeps_its_light_through_cluster_links(lit_room):
+    """In the closed lit room every watt that leaves a surface lands on one (escaped under
+    0.3% of the emitted: 0.03%), though a tenth of the links have a cluster end. Read from a
+    table of 42 directions, each end of such a link saw a face head-on as cos 18 degrees of
+    itself (4.3% lost); with each triangle's own cosine but the point-to-point kernel 1 /
+    (pi d^2), 2.7% was gained; with the point-to-disc kernel for all but the links from
+    small clusters to elements, 0.1%, from errors of both signs (-2.2% and +10% by the
+    links between clusters, +1.9% by those from clusters to elements), and 1.0% with
+    pairs' closed forms for links of up to 64 pairs."""
+    hr, r = lit_room
     nd = hr.nodes
     assert (nd.cluster[hr.links.src] | nd.cluster[hr.links.rcv]).mean() > 0.02
-    assert np.all(np.abs(r.result.escaped) < 0.01 * r.result.emitted)
+    assert np.all(np.abs(r.result.escaped) < 0.003 * r.result.emitted)
+
+
+def test_links_with_small_cluster_ends_deliver_their_pairs_closed_forms(lit_room):
+    """In the closed lit room, the light each kind of link with a cluster end of few
+    triangle pairs (``PAIRED``, ``PAIRED_ELEMENT``) hands its receivers, gathered through
+    the cluster maps, is within 1% of the sum over its triangle pairs of B_s A_r F(r -> s),
+    F the closed form averaged over 16 random points of r (not the points the maps use):
+    between two clusters, from a cluster to an element, from an element to a cluster. The
+    one direction and distance for all pairs took the first 2.2% under here, and 19% over
+    round a closed lamp room's corners."""
+    from radtr_addon.formfactors.closed_form import polygon_factor_numpy
+    from radtr_addon.hierarchical.solve import PAIRED, PAIRED_ELEMENT
+    from radtr_addon.sampling import triangle_points
+
+    hr, _ = lit_room
+    nd, ev, L = hr.nodes, hr.evaluator, hr.links
+    cs, cr = nd.cluster[L.src], nd.cluster[L.rcv]
+    pairs = ev.size(L.src) * ev.size(L.rcv)
+    rng = np.random.default_rng(3)
+    B_in = hr.Bopen[nd.element_root, 0]
+
+    def ends(e):                    # an end's triangles, their normals and B
+        if not nd.cluster[e]:
+            return nd.tri[e][None], nd.normal[e][None], hr.Bopen[e:e + 1, 0]
+        t = nd.order[ev.span[e, 0]:ev.span[e, 1]]
+        return ev.corners[t], nd.scene.normals[t], B_in[t]
+
+    def closed_form(i):
+        ts, _, Bs = ends(L.src[i])
+        tr, nr, _ = ends(L.rcv[i])
+        x = triangle_points(tr[:, None], *rng.random((2, len(tr), 16)))
+        area = 0.5 * np.linalg.norm(np.cross(tr[:, 1] - tr[:, 0], tr[:, 2] - tr[:, 0]), axis=1)
+        H = sum(b * polygon_factor_numpy(x + 1e-6 * nr[:, None], nr, np.repeat(t[None], len(tr), 0))
+                for t, b in zip(ts, Bs))
+        return float((area * H.mean(axis=1)).sum())
+
+    sources = np.ones(len(hr.leaf_ids), bool)
+    few = pairs <= np.where(cs & cr, PAIRED, PAIRED_ELEMENT)
+    for kind in (cs & cr, cs & ~cr, ~cs & cr):
+        kind = kind & few & (L.vis == 1)
+        assert kind.sum() > 50
+        hr.links = L.take(kind)
+        try:
+            delivered = hr.delivered(sources)[1][0]
+        finally:
+            hr.links = L
+        assert delivered == pytest.approx(sum(closed_form(i) for i in np.flatnonzero(kind)), rel=0.01)
 
 
 def test_cornell_box_against_cycles_at_its_own_vertices(blend):
@@ -786,27 +843,52 @@ def test_a_whole_solve_without_numba_equals_the_compiled_one(monkeypatch):
     assert np.abs(B - B_np).max() < 1e-12 * B.max() and B.max() > 0
 
 
+def test_pair_sums_compiled_equal_numpy_form(monkeypatch, tiled_room):
+    """The pairs' closed-form sums of the tiled room's links with few triangle pairs,
+    compiled, equal numpy's form (in batches of 500 pairs here), close pairs (by 16 points)
+    and far ones (at the centroid) alike: both kinds occur."""
+    from radtr_addon import compiled
+    from radtr_addon.hierarchical import solve as hs
+
+    if compiled.kernel("pair_sums") is None:
+        pytest.skip("numba cannot build the kernel here (the warning says why)")
+    hr = tiled_room
+    got = hs._paired_shares(hr.evaluator, hr.links)
+    with monkeypatch.context() as m:
+        m.setattr(compiled, "kernel", lambda name: None)
+        m.setattr(hs, "PAIR_BATCH", 500)
+        ref = hs._paired_shares(hr.evaluator, hr.links)
+        near = hs._pair_sums(hr.evaluator, hr.links.src, hr.links.rcv, *(hr.evaluator.size(e) for e in (
+            hr.links.src, hr.links.rcv)))
+        m.setattr(hs, "PAIR_FAR", 0.0)
+        centroid = hs._pair_sums(hr.evaluator, hr.links.src, hr.links.rcv, *(hr.evaluator.size(e) for e in (
+            hr.links.src, hr.links.rcv)))
+    assert (near[2] != centroid[2]).mean() > 0.1 and (near[2] == centroid[2]).mean() > 0.1
+    for (first, values), (ref_first, ref_values) in zip(got, ref):
+        assert np.array_equal(first, ref_first) and (first >= 0).sum() > 100
+        assert np.allclose(values, ref_values, rtol=1e-12, atol=1e-15 * np.abs(ref_values).max())
+
+
 def test_books_overdrawn_at_a_coarse_quality_are_warned_of():
-    """A closed 2 m room (rho 0.8) lit by a lamp 1 cm under its ceiling: at Quality 1.0 its
-    coarse cluster links bring the surfaces 20% more light than they send, and the solve says
-    so, with that share and a finer Quality to try; at 0.1 the books are within 1% of
-    balance on that side (what they lose is the light the lamp's back blocks) and nothing is
-    said."""
+    """A closed 2 m room (rho 0.8, 3 x 3 tiles a face) lit by a lamp 1 cm under its ceiling:
+    at Quality 1.0 its coarse links bring the surfaces 3.6% more light than they send (31%
+    before links of few triangle pairs took their pairs' closed forms), and the solve says
+    so, with that share and a finer Quality to try; at 0.3 the books are within 1% of
+    balance on that side and nothing is said."""
     from radtr_addon.pipeline import SceneInput, Solve
     from radtr_addon.settings import Settings
 
-    room = [[a, a + u, a + u + v, a + v] for a, u, v in
-            (map(np.array, f) for f in closed_box((0, 0, 0), (2, 2, 2), inward=True))]
+    room = [q for a, u, v in closed_box((0, 0, 0), (2, 2, 2), inward=True) for q in tiled(a, u, v, 3)]
     lamp = [(0.2, 0.2, 1.99), (0.2, 0.6, 1.99), (0.6, 0.6, 1.99), (0.6, 0.2, 1.99)]        # facing down
     scene = build([(room, 0.8, 0.0), ([lamp], 0.0, 5.0)])
-    for quality in (1.0, 0.1):
+    for quality in (1.0, 0.3):
         job = Solve(SceneInput(scene), Settings(solver="hierarchical", quality=quality, gather_rays=0),
                     log=lambda *_: None).run().finish()
         r = job.result
         over = float(-(r.escaped / r.emitted).min())
         said = [w for w in job.stats.warnings if "more than they send" in w]
         if quality == 1.0:
-            assert over > 0.1 and len(said) == 1
+            assert over > 0.02 and len(said) == 1
             assert f"{over:.1%}" in said[0] and "Quality (say 0.33)" in said[0]
         else:
             assert over < 0.01 and not said

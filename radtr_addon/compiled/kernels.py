@@ -562,6 +562,73 @@ def csr_times(indptr, indices, data, x):
     return out
 
 
+@njit(cache=True)
+def _centre(t, out):
+    """The centroid of triangle t into ``out``; returns its distance to the farthest corner."""
+    for q in range(3):
+        out[q] = (t[0, q] + t[1, q] + t[2, q]) / 3
+    reach = 0.0
+    for k in range(3):
+        reach = max(reach, np.sqrt((t[k, 0] - out[0]) ** 2 + (t[k, 1] - out[1]) ** 2 + (t[k, 2] - out[2]) ** 2))
+    return reach
+
+
+@njit(parallel=True, cache=True)
+def _pair_sums(src, rcv, first_s, first_r, cluster, span, order, node_tri, node_normal, corners, normals, points,
+               far, eps, sent, taken, total):
+    for j in prange(len(src)):
+        s, r = src[j], rcv[j]
+        a = span[s, 1] - span[s, 0] if cluster[s] else 1
+        b = span[r, 1] - span[r, 0] if cluster[r] else 1
+        poly, h, cr, cs = np.empty((4, 3)), np.empty(3), np.empty(3), np.empty(3)
+        for k in range(b):
+            tr, nr = _member(r, k, cluster, span, order, node_tri, node_normal, corners, normals)
+            e0, e1, e2 = tr[1, 0] - tr[0, 0], tr[1, 1] - tr[0, 1], tr[1, 2] - tr[0, 2]
+            f0, f1, f2 = tr[2, 0] - tr[0, 0], tr[2, 1] - tr[0, 1], tr[2, 2] - tr[0, 2]
+            c0, c1, c2 = e1 * f2 - e2 * f1, e2 * f0 - e0 * f2, e0 * f1 - e1 * f0
+            area = 0.5 * np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+            reach_r = _centre(tr, cr)
+            for i in range(a):
+                ts, _ = _member(s, i, cluster, span, order, node_tri, node_normal, corners, normals)
+                reach = reach_r + _centre(ts, cs)
+                if (cs[0] - cr[0]) ** 2 + (cs[1] - cr[1]) ** 2 + (cs[2] - cr[2]) ** 2 > (far * reach) ** 2:
+                    f = _point_factor(ts, cr[0] + eps * nr[0], cr[1] + eps * nr[1], cr[2] + eps * nr[2],
+                                      nr[0], nr[1], nr[2], poly, h)
+                else:
+                    f = 0.0
+                    for p in range(points.shape[0]):
+                        u, v, w = points[p, 0], points[p, 1], points[p, 2]
+                        x0 = u * tr[0, 0] + v * tr[1, 0] + w * tr[2, 0] + eps * nr[0]
+                        x1 = u * tr[0, 1] + v * tr[1, 1] + w * tr[2, 1] + eps * nr[1]
+                        x2 = u * tr[0, 2] + v * tr[1, 2] + w * tr[2, 2] + eps * nr[2]
+                        f += _point_factor(ts, x0, x1, x2, nr[0], nr[1], nr[2], poly, h)
+                    f /= points.shape[0]
+                sent[first_s[j] + i] += area * f
+                taken[first_r[j] + k] += f
+                total[j] += area * f
+
+
+def pair_sums(src, rcv, count_s, count_r, cluster, span, order, node_tri, node_normal, corners, normals, points, far,
+              eps):
+    """``hierarchical.solve._pair_sums``: for the links (src, rcv), whose ends hold ``count_s``
+    and ``count_r`` triangles (a cluster's members ``order[span[e, 0]:span[e, 1]]``, an
+    element its own), and each pair (s, r) of them, P the mean over barycentric ``points``
+    of r (lifted ``eps`` along its normal) of r's form factor to the front of s, or at r's
+    centroid alone where the centroids are over ``far`` times the sum of the triangles'
+    reaches (centroid to farthest corner) apart; returns
+    sent (sum of A_r P per triangle s, link after link), taken (sum of P per triangle r)
+    and total (sum of A_r P per link)."""
+    src, rcv, count_s, count_r = _ints(src), _ints(rcv), _ints(count_s), _ints(count_r)
+    if not len(src) == len(rcv) == len(count_s) == len(count_r):
+        raise ValueError(f"{len(src)} sources, {len(rcv)} receivers, {len(count_s)} and {len(count_r)} counts")
+    sent, taken, total = np.zeros(int(count_s.sum())), np.zeros(int(count_r.sum())), np.zeros(len(src))
+    _pair_sums(src, rcv, np.cumsum(count_s) - count_s, np.cumsum(count_r) - count_r,
+               np.ascontiguousarray(cluster, np.bool_), _ints(span), _ints(order), _reals(node_tri),
+               _reals(node_normal), _reals(corners), _reals(normals), _reals(points), float(far), float(eps),
+               sent, taken, total)
+    return sent, taken, total
+
+
 def _index(a):
     """Contiguous int32 or int64 as given (the two builds of a kernel over scipy's indices)."""
     a = np.asarray(a)
@@ -610,6 +677,11 @@ SMOKE = {
                           np.array([True, False]), np.array([[0, 1], [0, 1]]), np.array([0.5]), np.array([0]),
                           np.array([[[0.0, 0, 1], [0, 1, 1], [1, 0, 1]]] * 2), np.array([[0.0, 0, -1]] * 2),
                           np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]), np.array([[0.0, 0, 1]]), 1e-6),
+    "pair_sums": lambda: (np.array([0]), np.array([1]), np.array([1]), np.array([1]), np.array([False, False]),
+                          np.zeros((2, 2), np.int64), np.array([0]),
+                          np.array([[[0.0, 0, 1], [0, 1, 1], [1, 0, 1]], [[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]),
+                          np.array([[0.0, 0, -1], [0, 0, 1]]), np.zeros((1, 3, 3)), np.eye(3)[:1],
+                          np.full((1, 3), 1 / 3), 2.0, 1e-6),
     "csr_times": lambda: (np.array([0, 1, 1], np.int32), np.array([1], np.int32), np.array([2.0]), np.ones((2, 3))),
     "member_rays": lambda: (np.array([0]), np.array([0]), np.array([0]), np.array([1]), np.array([0]),
                             np.array([0.5]), np.array([1.0]), np.array([False, True]),

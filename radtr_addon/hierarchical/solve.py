@@ -32,7 +32,7 @@ from ..scene import PatchScene, triangle_geometry
 from ..solvers.result import SolveResult
 from ..textures import barycentric
 from . import quadratic
-from .contacts import Proximity
+from .contacts import Proximity, cell_centroids
 from .links import Evaluator, Links, direction_cosines, expand, ranges
 from .nodes import DIRECTIONS, Nodes
 
@@ -43,6 +43,20 @@ MAX_LINKS = 20_000_000
 EXACT_CLUSTER = 256
 #: (link, triangle) entries of ``ClusterMaps`` made per batch (bounds the temporary memory).
 MAP_BATCH = 1_000_000
+#: Links between two clusters holding at most this many triangle pairs share their light by
+#: each pair's closed form (``_paired_shares``), not by one direction and distance for all.
+PAIRED = 256
+#: The same for links with an element end (a cluster of at most this many triangles; larger
+#: ones take each triangle's closed form at one point, ``_member_shares``).
+PAIRED_ELEMENT = 64
+#: Barycentric points where a pair's closed form is taken on its receiving triangle (the
+#: centroids of its cells two levels down)...
+PAIR_POINTS = cell_centroids(2)
+#: ... or at its centroid alone, where the two triangles' centroids are over this many times
+#: the sum of their reaches (centroid to farthest corner) apart.
+PAIR_FAR = 2.0
+#: Triangle pairs numpy's form of ``_pair_sums`` takes at a time (bounds its memory).
+PAIR_BATCH = 100_000
 #: Fraction of the way from a result vertex to its leaves' centroids where its light is taken.
 #: On a box's side at the floor the gather point sees the floor's leaves along the footprint
 #: (``_open_light``) over a span that grows with the inset: at 1% (0.1 mm up) a few leaves'
@@ -137,11 +151,14 @@ class ClusterMaps:
         # the link's kernel is V geo / (pi d^2 + A_proj): an entry by a closed form undoes it
         geo = np.maximum(-np.einsum("ij,ij->i", nodes.normal[L.rcv], w), 0.0)
         disc = np.pi * dist ** 2 + evaluator._shown_area(L.src, w, L.d, L.dw)
-        send, (link, t, v) = _member_entries(evaluator, L, w, True, disc / np.maximum(geo, 1e-300) * (geo > 0))
+        sent, taken = _paired_shares(evaluator, L)
+        send, (link, t, v) = _member_entries(evaluator, L, w, True, disc / np.maximum(geo, 1e-300) * (geo > 0),
+                                             sent)
         S = _by_rows(link, t, v, (len(send), n))
         shown = nodes.area[L.src] * np.maximum(np.einsum("ij,ij->i", nodes.normal[L.src], w), 0.0)
         take, (link, t, v) = _member_entries(evaluator, L, w, False,
-                                             (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0))
+                                             (np.pi * dist ** 2 + shown) / np.maximum(shown, 1e-300) * (shown > 0),
+                                             taken)
         RT = _by_rows(link, t, v, (len(take), n))
         return cls(L, [(send, S, take, RT)])
 
@@ -208,13 +225,98 @@ def _by_rows(row: np.ndarray, col: np.ndarray, val: np.ndarray, shape: tuple):
     return csr_matrix((val, col, indptr), shape=shape)
 
 
-def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray):
+def _paired_shares(evaluator, L: Links) -> tuple:
+    """For the links of L with a cluster end and at most ``PAIRED`` triangle pairs
+    (``PAIRED_ELEMENT`` with an element end), their shares by each pair's closed form
+    P[r, s] (``_pair_sums``: the mean over points of receiving triangle r of its form
+    factor to the front of sending triangle s), as two (first,
+    values) for ``_member_entries``, of the sending and the taking ends: first[j] where
+    link j's values start (-1: not paired), one value per triangle of its end in cluster
+    order. Sent: s's power into R per unit B_s, sum_r A_r P[r, s], over the link's
+    unoccluded transfer; taken: r's irradiance from all of S at unit B, sum_s P[r, s],
+    over all of S's power into R (an element end's share folded into the other's). From
+    an even B over S, r then gets V B sum_s P[r, s], and each s sends R its own power V B_s
+    sum_r A_r P[r, s]. With one direction and distance for all pairs, the links between
+    small clusters round a closed room's corners (2-7 triangles) sent 19% more light than
+    the closed forms, and those of over 64 pairs in another closed room 10% more; those
+    from small clusters to elements, each triangle's closed form taken at the element's
+    centre alone, 2-4.5% more."""
+    nd = evaluator.nodes
+    cs, cr = evaluator.size(L.src), evaluator.size(L.rcv)
+    both = nd.cluster[L.src] & nd.cluster[L.rcv]
+    limit = np.where(both, PAIRED, PAIRED_ELEMENT)
+    j = np.flatnonzero((nd.cluster[L.src] | nd.cluster[L.rcv]) & (cs * cr <= limit))
+    out = []
+    for count in (cs, cr):
+        first = np.full(len(L), -1, np.int64)
+        first[j] = np.cumsum(count[j]) - count[j]
+        out.append([first, np.zeros(int(count[j].sum()))])
+    if not len(j):
+        return tuple(out)
+    kernel = compiled.kernel("pair_sums")
+    if kernel is not None:
+        sent, taken, total = kernel(L.src[j], L.rcv[j], cs[j], cr[j], nd.cluster, evaluator.span, nd.order, nd.tri,
+                                    nd.normal, evaluator.corners, nd.scene.normals, PAIR_POINTS, PAIR_FAR,
+                                    evaluator.caster.epsilon)
+    else:
+        sent, taken, total = _pair_sums(evaluator, L.src[j], L.rcv[j], cs[j], cr[j])
+    free = L.unoccluded(j)
+    sent /= np.repeat(np.where(free > 0, free, np.inf), cs[j])
+    taken /= np.repeat(np.where(total > 0, total, np.inf), cr[j])
+    one_s, one_r = ~nd.cluster[L.src[j]], ~nd.cluster[L.rcv[j]]      # an element end has no entries
+    out[0][1] = sent * np.repeat(np.where(one_r, taken[out[1][0][j]], 1.0), cs[j])
+    out[1][1] = taken * np.repeat(np.where(one_s, sent[out[0][0][j]], 1.0), cr[j])
+    return tuple(out)
+
+
+def _pair_sums(evaluator, src: np.ndarray, rcv: np.ndarray, cs: np.ndarray, cr: np.ndarray) -> tuple:
+    """Numpy's form of ``compiled.kernels.pair_sums``: for links (src, rcv) whose ends hold
+    ``cs`` and ``cr`` triangles, and each pair (s, r) of them, P the mean over ``PAIR_POINTS``
+    of r of its form factor to s (at r's centroid alone beyond ``PAIR_FAR``): per triangle s
+    the sum of A_r P, per triangle r the sum of P (link after link, in cluster order), per
+    link the sum of A_r P. In batches of about ``PAIR_BATCH`` pairs."""
+    out = []
+    pairs = np.cumsum(cs * cr)
+    first = 0
+    while first < len(src):
+        last = max(first + 1, int(np.searchsorted(pairs, pairs[first] - cs[first] * cr[first] + PAIR_BATCH)))
+        out.append(_pair_batch(evaluator, src[first:last], rcv[first:last], cs[first:last], cr[first:last]))
+        first = last
+    return tuple(np.concatenate([o[k] for o in out]) for k in range(3)) if out else (np.zeros(0),) * 3
+
+
+def _pair_batch(evaluator, src, rcv, cs, cr) -> tuple:
+    """``_pair_sums`` of one batch of links."""
+    link, k = ranges(np.zeros(len(src), np.int64), cs * cr)
+    ks, kr = k // cr[link], k % cr[link]
+    tri_s, _ = evaluator._members(src, cs)
+    tri_r, n_r = evaluator._members(rcv, cr)
+    at_s, at_r = (np.cumsum(cs) - cs)[link] + ks, (np.cumsum(cr) - cr)[link] + kr
+    area_r = 0.5 * np.linalg.norm(np.cross(tri_r[:, 1] - tri_r[:, 0], tri_r[:, 2] - tri_r[:, 0]), axis=1)
+    c_s, c_r = tri_s.mean(axis=1), tri_r.mean(axis=1)
+    reach_s = np.linalg.norm(tri_s - c_s[:, None], axis=2).max(axis=1)
+    reach_r = np.linalg.norm(tri_r - c_r[:, None], axis=2).max(axis=1)
+    eps = evaluator.caster.epsilon
+    P = polygon_factor((c_r + eps * n_r)[at_r, None], n_r[at_r], tri_s[at_s])[:, 0]
+    apart = np.sum((c_s[at_s] - c_r[at_r]) ** 2, axis=1)
+    i = np.flatnonzero(apart <= (PAIR_FAR * (reach_s[at_s] + reach_r[at_r])) ** 2)
+    x = np.einsum("pk,lkc->lpc", PAIR_POINTS, tri_r[at_r[i]]) + eps * n_r[at_r[i]][:, None]
+    P[i] = polygon_factor(x, n_r[at_r[i]], tri_s[at_s[i]]).mean(axis=1)
+    power = area_r[at_r] * P
+    return (np.bincount(at_s, weights=power, minlength=int(cs.sum())),
+            np.bincount(at_r, weights=P, minlength=int(cr.sum())),
+            np.bincount(link, weights=power, minlength=len(src)))
+
+
+def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.ndarray,
+                    paired: tuple | None = None):
     """The links of L whose sending (or taking) end is a small cluster, and per (link, input
     triangle of that end) the share of the link's light: A max(0, n.w) sent, max(0, -n.w)
     taken; where the other end is an element, the triangle's closed form to it (sending:
     from the element's centre to the triangle; taking: from the triangle's centroid to the
-    element) times ``undo``, the link's kernel over its cosine. In batches of
-    ``MAP_BATCH`` entries (a large scene has tens of millions)."""
+    element) times ``undo``, the link's kernel over its cosine; where ``paired``
+    (``_paired_shares``: that end's), its values. In batches of ``MAP_BATCH`` entries (a
+    large scene has tens of millions)."""
     nodes, span = evaluator.nodes, evaluator.span
     ends, other = (L.src, L.rcv) if sending else (L.rcv, L.src)
     links = np.flatnonzero(nodes.cluster[ends])                 # clusters are the first nodes: in span
@@ -227,6 +329,11 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
         last = max(first + 1, int(np.searchsorted(np.cumsum(count[first:]), MAP_BATCH)) + first)
         pos, t, v = _member_shares(evaluator, lo[first:last], count[first:last], links[first:last], w, sending,
                                    other, undo)
+        start = paired[0][links[first:last]] if paired is not None else np.full(last - first, -1)
+        if (start >= 0).any():
+            e = np.flatnonzero(start[pos] >= 0)
+            k = e - (np.cumsum(count[first:last]) - count[first:last])[pos[e]]
+            v[e] = paired[1][start[pos[e]] + k]
         _member_visibility(evaluator, pos, t, links[first:last], ends, other, L.vis, v)
         rows.append(pos + first)
         tris.append(t)
