@@ -229,10 +229,9 @@ def _paired_shares(evaluator, L: Links) -> tuple:
     """For the links of L with a cluster end and at most ``PAIRED`` triangle pairs
     (``PAIRED_ELEMENT`` with an element end), their shares by each pair's closed form
     P[r, s] (``_pair_sums``: the mean over points of receiving triangle r of its form
-    factor to the front of sending triangle s), as two (first,
-    values) for ``_member_entries``, of the sending and the taking ends: first[j] where
-    link j's values start (-1: not paired), one value per triangle of its end in cluster
-    order. Sent: s's power into R per unit B_s, sum_r A_r P[r, s], over the link's
+    factor to the front of sending triangle s), as two (first, values) for
+    ``_member_entries``, of the sending and the taking ends: first[j] where link j's
+    values start (-1: not paired), one value per triangle of its end in cluster order. Sent: s's power into R per unit B_s, sum_r A_r P[r, s], over the link's
     unoccluded transfer; taken: r's irradiance from all of S at unit B, sum_s P[r, s],
     over all of S's power into R (an element end's share folded into the other's). From
     an even B over S, r then gets V B sum_s P[r, s], and each s sends R its own power V B_s
