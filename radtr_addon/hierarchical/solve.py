@@ -231,11 +231,12 @@ def _paired_shares(evaluator, L: Links) -> tuple:
     P[r, s] (``_pair_sums``: the mean over points of receiving triangle r of its form
     factor to the front of sending triangle s), as two (first, values) for
     ``_member_entries``, of the sending and the taking ends: first[j] where link j's
-    values start (-1: not paired), one value per triangle of its end in cluster order. Sent: s's power into R per unit B_s, sum_r A_r P[r, s], over the link's
-    unoccluded transfer; taken: r's irradiance from all of S at unit B, sum_s P[r, s],
-    over all of S's power into R (an element end's share folded into the other's). From
-    an even B over S, r then gets V B sum_s P[r, s], and each s sends R its own power V B_s
-    sum_r A_r P[r, s]. With one direction and distance for all pairs, the links between
+    values start (-1: not paired), one value per triangle of its end in cluster order.
+    Sent: s's power into R per unit B_s, sum_r A_r P[r, s], over the link's unoccluded
+    transfer; taken: r's irradiance from all of S at unit B, sum_s P[r, s], over all of
+    S's power into R (an element end's share folded into the other's). From an even B over
+    S, r then gets V B sum_s P[r, s], and each s sends R its own power V B_s sum_r A_r
+    P[r, s]. With one direction and distance for all pairs, the links between
     small clusters round a closed room's corners (2-7 triangles) sent 19% more light than
     the closed forms, and those of over 64 pairs in another closed room 10% more; those
     from small clusters to elements, each triangle's closed form taken at the element's
