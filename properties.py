@@ -13,7 +13,7 @@ from bpy.props import (
 
 from .radtr_addon.hierarchical.solve import GATHER_ADAPTIVE
 from .radtr_addon.lowrank.backends import BACKENDS, DEFAULT_BACKEND
-from .radtr_addon.settings import AUTO_GATHER_RAYS, Settings, auto_gather_rays
+from .radtr_addon.settings import AUTO_GATHER_RAYS, QUALITY_MIN, Settings, auto_gather_rays
 
 _D = Settings()
 
@@ -93,7 +93,7 @@ class RADTR_PG_settings(bpy.types.PropertyGroup):
                ("hierarchical", "Hierarchical", "Adaptive patches and links: refined only where light changes "
                 "(contacts, shadows, near fields); Quality sets how far")])
     quality: FloatProperty(
-        name="Quality", default=_D.quality, min=1e-4, max=1.0, precision=4,
+        name="Quality", default=_D.quality, min=QUALITY_MIN, max=1.0, precision=4,
         description="Hierarchical: error allowed per link, as a fraction of the scene's mean emitted exitance "
                     "(smaller: more patches and links, slower, closer)")
     user_solver: StringProperty(

@@ -27,7 +27,7 @@ from .lights import Light, direct_irradiance, sky_irradiance
 from .reconstruct import VertexRadiosity
 from .sampling import grid_side
 from .scene import PatchScene, check_writable
-from .settings import Settings, auto_max_area
+from .settings import QUALITY_MIN, Settings, auto_max_area
 from .solvers import make_solver, patch_bytes
 from .textures import varying_reflectance
 
@@ -370,9 +370,9 @@ class Solve:
         if not share > OVERDRAWN:
             return []
         q = self.settings.quality
-        return [f"the surfaces receive {share:.1%} of the emitted power more than they send (the books' "
-                f"escaped is negative): the links' errors, each within Quality {q:g}, add up; a finer "
-                f"Quality (say {q / 3:.2g}) brings the books nearer balance"]
+        return [f"the surfaces receive more light than they send, by {share:.1%} of the emitted power (the "
+                f"books' escaped is negative): the links' errors, each within Quality {q:g}, add up; a finer "
+                f"Quality (say {max(q / 3, QUALITY_MIN):.2g}) brings the books nearer balance"]
 
     def finish(self) -> "Solve":
         """Conclude the solve (``B``, ``leaves``, ``vertices``) and log its summary."""

@@ -25,6 +25,8 @@ AUTO_PATCHES = 2000
 #: ceiling patch 3-11% bright; gathered, within 2% (per-vertex noise 3.6% at 256 rays, 8% and
 #: blotches at 64). Coarser Quality takes fewer (``auto_gather_rays``).
 AUTO_GATHER_RAYS = 256
+#: The finest Quality (hierarchical epsilon) a solve takes.
+QUALITY_MIN = 1e-4
 
 
 def auto_gather_rays(quality: float) -> int:
@@ -32,7 +34,7 @@ def auto_gather_rays(quality: float) -> int:
     decade to 1 (144 there), where the links' own error is as large as the gather's noise
     (the atrium at Quality 1.0 against Cycles: 4.05% per vertex at 128 rays in 35 s, 3.88%
     at 256 in 54 s); a square, the stratified grid a vertex's rays are cast on."""
-    side = np.sqrt(AUTO_GATHER_RAYS) * min(1.0, (0.1 / max(quality, 1e-4)) ** (np.log10(2) / 2))
+    side = np.sqrt(AUTO_GATHER_RAYS) * min(1.0, (0.1 / max(quality, QUALITY_MIN)) ** (np.log10(2) / 2))
     return int(np.ceil(side - 1e-9)) ** 2
 
 #: Peak bytes per Embree ray in flight (a form-factor row or a vertex gather; measured).
@@ -119,7 +121,7 @@ class Settings:
                 ("max area", s.max_area, s.max_area >= 0 and np.isfinite(s.max_area), "0 (auto) or more"),
                 ("levels", s.levels, s.levels >= 0, "0 or more"),
                 ("resolution", s.resolution, s.resolution >= 2, "at least 2"),
-                ("quality", s.quality, 1e-4 <= s.quality <= 1,
+                ("quality", s.quality, QUALITY_MIN <= s.quality <= 1,
                  "between 1e-4 and 1 (smaller: finer, slower; at 0.1 the bundled furnished room takes "
                  "about 1.5 minutes, at 0.03 over 10)"),
                 ("tolerance", s.tolerance, 0 <= s.tolerance < np.inf, "0 or more"),

@@ -992,7 +992,8 @@ class HierarchicalRadiosity:
         """Jacobi sweeps with push-pull until the residual power is below the tolerance. The
         sweep that finds it so keeps the B it gathered from, not the step it makes: that
         gather is then B's own H (``H6``), and the step left the books' ``unshot``, so no
-        gather more is needed (one a round, a tenth of a large scene's solve)."""
+        gather more is needed (one a round, a tenth of a large scene's solve). Where the
+        sweeps run out first, the last step is taken and gathered once more."""
         t0 = time.perf_counter()
         nd, s = self.nodes, self.settings
         leaves = nd.leaves()
@@ -1009,12 +1010,14 @@ class HierarchicalRadiosity:
             self.sweeps += 1
             self.history.append(residual)
             self.times.append(time.perf_counter() - self._t_start)
-            if residual <= s.tolerance or sweep == sweeps - 1:
+            if residual <= s.tolerance:
                 break
             if cancel is not None and cancel():
                 raise Cancelled("solve cancelled; nothing was changed")
             B = B_new
             self._pull(leaves, anc, B, share)
+            if sweep == sweeps - 1:
+                H6 = self._gather(leaves, plan)
         self.H6 = H6
         self.leaf_ids, self.B = leaves, B
         self._ranges(anc, B)
