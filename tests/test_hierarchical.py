@@ -830,10 +830,7 @@ def test_a_whole_solve_without_numba_equals_the_compiled_one(monkeypatch):
 
     if compiled.kernel("facing") is None:
         pytest.skip("numba cannot build the kernels here (the warning says why)")
-    room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 3)]
-    boxes = [q for x in (0.5, 2.5) for a, u, v in closed_box((x, 1, 0), (x + 0.8, 1.6, 0.7), False)
-             for q in tiled(a, u, v, 2)]
-    scene = build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)])
+    scene = tiled_room_scene()
     hr, r = run(scene, quality=1.0)
     monkeypatch.setattr(compiled, "kernel", lambda name: None)
     hr_np, r_np = run(scene, quality=1.0)
@@ -1204,14 +1201,19 @@ def test_points_on_nodes_fall_on_their_triangles_by_area(form, monkeypatch):
             assert np.allclose(xc, x, atol=1e-12) and np.array_equal(nc, n)
 
 
-@pytest.fixture(scope="module")
-def tiled_room():
+def tiled_room_scene():
     """A 4 x 4 x 2.5 m room of 3 x 3 tiles a wall, lit by its walls, with two tiled boxes on
-    its floor, solved at Quality 0.3: links with small cluster ends (``ClusterMaps``)."""
+    its floor."""
     room = [q for a, u, v in closed_box((0, 0, 0), (4, 4, 2.5), inward=True) for q in tiled(a, u, v, 3)]
     boxes = [q for x in (0.5, 2.5) for a, u, v in closed_box((x, 1, 0), (x + 0.8, 1.6, 0.7), False)
              for q in tiled(a, u, v, 2)]
-    return run(build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)]), quality=0.3)[0]
+    return build([(room, 0.7, 1.0), (boxes, 0.5, 0.0)])
+
+
+@pytest.fixture(scope="module")
+def tiled_room():
+    """``tiled_room_scene`` solved at Quality 0.3: links with small cluster ends (``ClusterMaps``)."""
+    return run(tiled_room_scene(), quality=0.3)[0]
 
 
 def test_member_entries_compiled_equal_numpy_form(monkeypatch, tiled_room):

@@ -200,11 +200,9 @@ class Evaluator:
             out[small] = kernel(s[small], r[small], nd.cluster, self.span, nd.order, nd.tri, nd.normal,
                                 self.corners, nd.scene.normals, nd.lo, nd.hi, tol)
             return out
-        pairs = np.cumsum(cs[small] * cr[small])
-        while len(small):
-            part = small[:max(int(np.searchsorted(pairs, FACING_CHUNK, side="right")), 1)]
+        for first, last in batches(cs[small] * cr[small], FACING_CHUNK):
+            part = small[first:last]
             out[part] = self._facing_pairs(s[part], r[part], cs[part], cr[part])
-            small, pairs = small[len(part):], pairs[len(part):] - pairs[len(part) - 1]
         return out
 
     def _facing_pairs(self, s: np.ndarray, r: np.ndarray, cs: np.ndarray, cr: np.ndarray) -> np.ndarray:
@@ -428,6 +426,18 @@ def shadow_rays(x, n_r, tri, n_s, u, v, eps):
     ki, mi = np.nonzero(w > 0)
     origin[ki, mi], direction[ki, mi], length[ki, mi] = clear_rays(x[ki], targets[ki, mi], None, n_s[ki], eps)
     return origin, direction, length, w
+
+
+def batches(count: np.ndarray, limit: int):
+    """(first, last) of runs of consecutive items whose ``count`` sums to at most ``limit``
+    (one item alone where its own is more): batches bounding a pass's temporary memory."""
+    total = np.cumsum(count)
+    first = 0
+    while first < len(total):
+        base = total[first - 1] if first else 0
+        last = max(first + 1, int(np.searchsorted(total, base + limit, side="right")))
+        yield first, last
+        first = last
 
 
 def ranges(first: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -33,7 +33,7 @@ from ..solvers.result import SolveResult
 from ..textures import barycentric
 from . import quadratic
 from .contacts import Proximity, cell_centroids
-from .links import Evaluator, Links, direction_cosines, expand, ranges
+from .links import Evaluator, Links, batches, direction_cosines, expand, ranges
 from .nodes import DIRECTIONS, Nodes
 
 #: Links held at most (about 100 bytes each), refused beyond with advice.
@@ -275,13 +275,8 @@ def _pair_sums(evaluator, src: np.ndarray, rcv: np.ndarray, cs: np.ndarray, cr: 
     of r of its form factor to s (at r's centroid alone beyond ``PAIR_FAR``): per triangle s
     the sum of A_r P, per triangle r the sum of P (link after link, in cluster order), per
     link the sum of A_r P. In batches of about ``PAIR_BATCH`` pairs."""
-    out = []
-    pairs = np.cumsum(cs * cr)
-    first = 0
-    while first < len(src):
-        last = max(first + 1, int(np.searchsorted(pairs, pairs[first] - cs[first] * cr[first] + PAIR_BATCH)))
-        out.append(_pair_batch(evaluator, src[first:last], rcv[first:last], cs[first:last], cr[first:last]))
-        first = last
+    out = [_pair_batch(evaluator, src[first:last], rcv[first:last], cs[first:last], cr[first:last])
+           for first, last in batches(cs * cr, PAIR_BATCH)]
     return tuple(np.concatenate([o[k] for o in out]) for k in range(3)) if out else (np.zeros(0),) * 3
 
 
@@ -297,11 +292,12 @@ def _pair_batch(evaluator, src, rcv, cs, cr) -> tuple:
     reach_s = np.linalg.norm(tri_s - c_s[:, None], axis=2).max(axis=1)
     reach_r = np.linalg.norm(tri_r - c_r[:, None], axis=2).max(axis=1)
     eps = evaluator.caster.epsilon
-    P = polygon_factor((c_r + eps * n_r)[at_r, None], n_r[at_r], tri_s[at_s])[:, 0]
-    apart = np.sum((c_s[at_s] - c_r[at_r]) ** 2, axis=1)
-    i = np.flatnonzero(apart <= (PAIR_FAR * (reach_s[at_s] + reach_r[at_r])) ** 2)
+    close = np.sum((c_s[at_s] - c_r[at_r]) ** 2, axis=1) <= (PAIR_FAR * (reach_s[at_s] + reach_r[at_r])) ** 2
+    P = np.empty(len(at_r))
+    i, j = np.flatnonzero(close), np.flatnonzero(~close)
     x = np.einsum("pk,lkc->lpc", PAIR_POINTS, tri_r[at_r[i]]) + eps * n_r[at_r[i]][:, None]
     P[i] = polygon_factor(x, n_r[at_r[i]], tri_s[at_s[i]]).mean(axis=1)
+    P[j] = polygon_factor((c_r + eps * n_r)[at_r[j], None], n_r[at_r[j]], tri_s[at_s[j]])[:, 0]
     power = area_r[at_r] * P
     return (np.bincount(at_s, weights=power, minlength=int(cs.sum())),
             np.bincount(at_r, weights=P, minlength=int(cr.sum())),
@@ -324,9 +320,7 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
     small = hi - lo <= EXACT_CLUSTER
     links, lo, count = links[small], lo[small], (hi - lo)[small]
     rows, tris, vals = [], [], []
-    first = 0
-    while first < len(links):
-        last = max(first + 1, int(np.searchsorted(np.cumsum(count[first:]), MAP_BATCH)) + first)
+    for first, last in batches(count, MAP_BATCH):
         pos, t, v = _member_shares(evaluator, lo[first:last], count[first:last], links[first:last], w, sending,
                                    other, undo)
         start = paired[0][links[first:last]] if paired is not None else np.full(last - first, -1)
@@ -338,7 +332,6 @@ def _member_entries(evaluator, L: Links, w: np.ndarray, sending: bool, undo: np.
         rows.append(pos + first)
         tris.append(t)
         vals.append(v)
-        first = last
     if not rows:
         return links, (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
     return links, (np.concatenate(rows), np.concatenate(tris), np.concatenate(vals))
